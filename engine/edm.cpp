@@ -1,0 +1,582 @@
+#include "engine/edm.hpp"
+
+#include <fmt/format.h>
+
+#include <algorithm>
+#include <array>
+#include <chrono>
+#include <cmath>
+#include <stdexcept>
+
+#include "contact/hard.hpp"
+#include "contact/predict.hpp"
+#include "scheduler/calendar_queue.hpp"
+#include "scheduler/heap_queue.hpp"
+
+namespace matep {
+
+namespace {
+
+// Moment of inertia factor q = I / (m r^2): 2/5 for solid spheres, 1/2 for disks.
+template <int D>
+constexpr double inertia_factor() {
+  return D == 3 ? 0.4 : 0.5;
+}
+
+template <int D>
+struct alignas(D == 3 ? 64 : 16) Hot {
+  Vec<D> x;      // position at time t
+  Vec<D> v;      // velocity at time t
+  double t;      // the particle's own (lazy) time
+  double R;      // radius
+};
+
+template <int D, class Queue>
+class EdmEngine {
+ public:
+  EdmEngine(const System<D>& sys, const EdmSettings& set, const std::vector<Observer<D>*>& obs)
+      : sys_(sys), set_(set), N_(static_cast<int>(sys.size())), queue_(sys.size() + 2) {
+    for (auto* o : obs) {
+      if (!o) continue;
+      observers_.push_back(o);
+      if (o->wants_collisions()) collision_observers_.push_back(o);
+    }
+    g_ = sys.gravity;
+    gravity_ = g_.squaredNorm() > 0.0;
+    lo_ = sys.lower;
+    hi_ = sys.upper;
+    L_ = hi_ - lo_;
+    window_ = set.collapse_window > 0.0 ? set.collapse_window : 1e-9 * set.end_time;
+
+    hot_.resize(N_);
+    m_.resize(N_);
+    mat_.resize(N_);
+    counter_.assign(N_, 0);
+    ev_type_.assign(N_, kNone);
+    ev_aux_.assign(N_, 0);
+    ev_partner_.assign(N_, -1);
+    ev_pcount_.assign(N_, 0);
+    last_.assign(N_, -kNever);
+    rapid_.assign(N_, 0);
+    double rmax = 0.0;
+    for (int i = 0; i < N_; ++i) {
+      hot_[i].x = sys.x[i];
+      hot_[i].v = sys.v[i];
+      hot_[i].t = 0.0;
+      hot_[i].R = sys.radius[i];
+      m_[i] = sys.mass(i);
+      mat_[i] = sys.material[i];
+      rmax = std::max(rmax, sys.radius[i]);
+    }
+    all_elastic_ = true;
+    for (const auto& mat : sys.materials) all_elastic_ = all_elastic_ && mat.restitution.is_elastic();
+    build_cells(2.0 * rmax);
+  }
+
+  RunResult<D> run() {
+    const auto wall0 = std::chrono::steady_clock::now();
+    // System events: one id for the thermo sampler, one for the end of the run.
+    const int sample_id = N_, end_id = N_ + 1;
+    emit_sample(0.0, /*interval=*/0.0);
+    for (int i = 0; i < N_; ++i) predict(i, 0.0);
+    if (set_.thermo_interval > 0.0 && set_.thermo_interval < set_.end_time)
+      queue_.set(sample_id, set_.thermo_interval);
+    queue_.set(end_id, set_.end_time);
+    std::uint64_t sample_k = 1;
+    double last_sample_time = 0.0;
+
+    RunResult<D> res;
+    std::uint64_t processed = 0;
+    while (!queue_.empty()) {
+      const auto [id, t] = queue_.top();
+      queue_.pop();
+      now_ = t;
+      if (id == end_id) break;
+      if (id == sample_id) {
+        emit_sample(t, t - last_sample_time);
+        last_sample_time = t;
+        ++sample_k;
+        const double next = static_cast<double>(sample_k) * set_.thermo_interval;
+        if (next < set_.end_time) queue_.set(sample_id, next);
+        continue;
+      }
+      if (++processed >= set_.max_events) {
+        status_ = "max_events";
+        message_ = fmt::format("stopped after run.max_events = {} events at t = {:.17g}",
+                               set_.max_events, t);
+        break;
+      }
+      if ((processed & 0x3fff) == 0)
+        for (auto* o : observers_) o->on_progress(t, processed);
+      handle(id, t);
+      if (!status_.empty()) break;
+    }
+    // Bring every particle to the final time and write the last row.
+    const double t_end = status_.empty() ? set_.end_time : now_;
+    for (int i = 0; i < N_; ++i) advance(i, t_end);
+    if (t_end > last_sample_time || counts_.samples == 1) emit_sample(t_end, t_end - last_sample_time);
+
+    res.status = status_.empty() ? "ok" : status_;
+    res.message = message_;
+    res.time = t_end;
+    res.counts = counts_;
+    measure_overlaps(res);
+    res.x.resize(N_);
+    res.v.resize(N_);
+    for (int i = 0; i < N_; ++i) {
+      res.x[i] = hot_[i].x;
+      res.v[i] = hot_[i].v;
+    }
+    res.w = sys_.w;
+    if (res.w.size() != static_cast<std::size_t>(N_)) res.w.assign(N_, Spin<D>::Zero());
+    res.wall_seconds =
+        std::chrono::duration<double>(std::chrono::steady_clock::now() - wall0).count();
+    return res;
+  }
+
+ private:
+  enum : std::uint8_t { kNone = 0, kPair = 1, kWall = 2, kCross = 3 };
+
+  // ---- cells ---------------------------------------------------------------------------------
+  void build_cells(double dmax) {
+    ncells_total_ = 1;
+    for (int k = 0; k < D; ++k) {
+      int n = dmax > 0.0 ? static_cast<int>(std::floor(L_[k] / dmax)) : 1;
+      // Cap the grid at about two cells per particle per axis product (memory), at least 1.
+      n = std::max(1, std::min(n, 1 << 20));
+      if (sys_.periodic[k] && n < 3)
+        throw std::invalid_argument(fmt::format(
+            "domain: periodic axis {} is {:.6g} long, shorter than 3 largest particle diameters "
+            "({:.6g}); enlarge the domain",
+            k, L_[k], 3.0 * dmax));
+      nc_[k] = n;
+      cw_[k] = L_[k] / n;
+    }
+    // Too many cells for the particle count wastes memory: coarsen uniformly.
+    const double max_cells = std::max(64.0, 2.0 * N_);
+    for (;;) {
+      double total = 1.0;
+      for (int k = 0; k < D; ++k) total *= nc_[k];
+      if (total <= max_cells) break;
+      for (int k = 0; k < D; ++k) {
+        const int n = std::max(sys_.periodic[k] ? 3 : 1, static_cast<int>(nc_[k] * 0.8));
+        nc_[k] = n;
+        cw_[k] = L_[k] / n;
+      }
+    }
+    stride_[0] = 1;
+    for (int k = 1; k < D; ++k) stride_[k] = stride_[k - 1] * nc_[k - 1];
+    ncells_total_ = stride_[D - 1] * nc_[D - 1];
+    head_.assign(ncells_total_, -1);
+    next_.assign(N_, -1);
+    prev_.assign(N_, -1);
+    cell_.resize(N_);
+    for (int i = 0; i < N_; ++i) {
+      for (int k = 0; k < D; ++k) {
+        int c = static_cast<int>(std::floor((hot_[i].x[k] - lo_[k]) / cw_[k]));
+        cell_[i][k] = std::clamp(c, 0, nc_[k] - 1);
+      }
+      cell_insert(i);
+    }
+  }
+  int linear(const std::array<int, D>& c) const {
+    int l = 0;
+    for (int k = 0; k < D; ++k) l += c[k] * stride_[k];
+    return l;
+  }
+  void cell_insert(int i) {
+    const int l = linear(cell_[i]);
+    prev_[i] = -1;
+    next_[i] = head_[l];
+    if (head_[l] >= 0) prev_[head_[l]] = i;
+    head_[l] = i;
+  }
+  void cell_remove(int i) {
+    if (prev_[i] >= 0)
+      next_[prev_[i]] = next_[i];
+    else
+      head_[linear(cell_[i])] = next_[i];
+    if (next_[i] >= 0) prev_[next_[i]] = prev_[i];
+  }
+
+  // Visits every particle j != i in the 3^D cells around i's cell with the image shift that
+  // brings j next to i: f(j, shift).
+  template <class F>
+  void for_neighbours(int i, F&& f) const {
+    std::array<int, D> c = cell_[i];
+    std::array<int, 3> nk[D];
+    std::array<double, 3> sk[D];
+    std::array<int, D> count{};
+    for (int k = 0; k < D; ++k) {
+      for (int o = -1; o <= 1; ++o) {
+        int cc = c[k] + o;
+        double s = 0.0;
+        if (cc < 0) {
+          if (!sys_.periodic[k]) continue;
+          cc += nc_[k];
+          s = -L_[k];
+        } else if (cc >= nc_[k]) {
+          if (!sys_.periodic[k]) continue;
+          cc -= nc_[k];
+          s = L_[k];
+        }
+        nk[k][count[k]] = cc * stride_[k];
+        sk[k][count[k]] = s;
+        ++count[k];
+      }
+    }
+    Vec<D> shift;
+    if constexpr (D == 2) {
+      for (int a = 0; a < count[0]; ++a)
+        for (int b = 0; b < count[1]; ++b) {
+          shift << sk[0][a], sk[1][b];
+          for (int j = head_[nk[0][a] + nk[1][b]]; j >= 0; j = next_[j])
+            if (j != i) f(j, shift);
+        }
+    } else {
+      for (int a = 0; a < count[0]; ++a)
+        for (int b = 0; b < count[1]; ++b)
+          for (int cidx = 0; cidx < count[2]; ++cidx) {
+            shift << sk[0][a], sk[1][b], sk[2][cidx];
+            for (int j = head_[nk[0][a] + nk[1][b] + nk[2][cidx]]; j >= 0; j = next_[j])
+              if (j != i) f(j, shift);
+          }
+    }
+  }
+
+  // ---- motion ---------------------------------------------------------------------------------
+  void advance(int i, double t) {
+    Hot<D>& h = hot_[i];
+    const double dt = t - h.t;
+    if (dt == 0.0) return;
+    if (gravity_) {
+      h.x += h.v * dt + (0.5 * dt * dt) * g_;
+      h.v += g_ * dt;
+    } else {
+      h.x += h.v * dt;
+    }
+    h.t = t;
+  }
+
+  // Predicts and schedules particle i's next event. i must be at time `now`.
+  void predict(int i, double now) {
+    const Hot<D>& hi = hot_[i];
+    double best = kNever;
+    std::uint8_t type = kNone, aux = 0;
+    int partner = -1;
+    // Cell crossings.
+    for (int k = 0; k < D; ++k) {
+      const int c = cell_[i][k];
+      const double lo = (c == 0) ? lo_[k] : lo_[k] + c * cw_[k];
+      const double hi_face = (c == nc_[k] - 1) ? hi_[k] : lo_[k] + (c + 1) * cw_[k];
+      bool up = false;
+      const double dt = slab_exit_time(hi.x[k], hi.v[k], g_[k], lo, hi_face, up);
+      if (dt < best) {
+        best = dt;
+        type = kCross;
+        aux = static_cast<std::uint8_t>(2 * k + (up ? 1 : 0));
+      }
+    }
+    // Walls.
+    for (std::size_t w = 0; w < sys_.walls.size(); ++w) {
+      const auto& wall = sys_.walls[w];
+      const double dt = wall_collision_time(hi.x, hi.v, g_, hi.R, wall.point, wall.normal);
+      if (dt < best) {
+        best = dt;
+        type = kWall;
+        partner = static_cast<int>(w);
+      }
+    }
+    // Pairs (Allen-Tildesley), neighbours taken at their stored time and moved virtually.
+    const Vec<D> xi = hi.x, vi = hi.v;
+    const double Ri = hi.R;
+    auto test = [&](int j, const Vec<D>& shift) {
+      const Hot<D>& hj = hot_[j];
+      const double dtj = now - hj.t;
+      Vec<D> r = xi - hj.x - shift - hj.v * dtj;
+      Vec<D> v = vi - hj.v;
+      if (gravity_) {
+        r -= (0.5 * dtj * dtj) * g_;
+        v -= g_ * dtj;
+      }
+      const double dt = pair_collision_time(r, v, Ri + hj.R);
+      if (dt < best) {
+        best = dt;
+        type = kPair;
+        partner = j;
+      }
+    };
+    for_neighbours(i, test);
+    ev_type_[i] = type;
+    ev_aux_[i] = aux;
+    ev_partner_[i] = partner;
+    if (type == kPair) ev_pcount_[i] = counter_[partner];
+    queue_.set(i, now + best);
+  }
+
+  double restitution(int mi, int mj, double u) const {
+    const auto& a = sys_.materials[mi].restitution;
+    if (mi == mj) return a(u);
+    return mixed_restitution(a, sys_.materials[mj].restitution, u);
+  }
+
+  // Collapse detector and TC bookkeeping for a particle that just collided at `now`.
+  void note_collision(int i) {
+    if (now_ - last_[i] < window_) {
+      if (++rapid_[i] >= set_.collapse_count && status_.empty()) {
+        status_ = "collapse";
+        message_ = fmt::format(
+            "inelastic collapse: particle {} had {} consecutive collisions less than {:.3g} "
+            "apart, at t = {:.17g}; use run.tc (TC model) or method = \"hybrid\"",
+            i, rapid_[i], window_, now_);
+      }
+    } else {
+      rapid_[i] = 0;
+    }
+    last_[i] = now_;
+  }
+
+  void handle(int i, double t) {
+    switch (ev_type_[i]) {
+      case kPair: {
+        const int j = ev_partner_[i];
+        advance(i, t);
+        if (counter_[j] != ev_pcount_[i]) {  // partner changed course: re-predict
+          ++counts_.stale;
+          predict(i, t);
+          return;
+        }
+        advance(j, t);
+        collide_pair(i, j);
+        predict(i, t);
+        predict(j, t);
+        return;
+      }
+      case kWall: {
+        advance(i, t);
+        collide_wall(i, ev_partner_[i]);
+        predict(i, t);
+        return;
+      }
+      case kCross: {
+        advance(i, t);
+        ++counts_.cell;
+        const int k = ev_aux_[i] / 2;
+        const bool up = ev_aux_[i] & 1;
+        cell_remove(i);
+        int c = cell_[i][k] + (up ? 1 : -1);
+        if (c < 0 || c >= nc_[k]) {
+          if (!sys_.periodic[k]) {
+            cell_insert(i);
+            status_ = "escaped";
+            message_ = fmt::format(
+                "particle {} left the domain through the {} face of axis {} at t = {:.17g} "
+                "(position {:.6g}); add a wall there or make the axis periodic",
+                i, up ? "upper" : "lower", k, t, hot_[i].x[k]);
+            return;
+          }
+          c = up ? 0 : nc_[k] - 1;
+          hot_[i].x[k] += up ? -L_[k] : L_[k];
+        }
+        cell_[i][k] = c;
+        cell_insert(i);
+        predict(i, t);
+        return;
+      }
+      default:
+        return;
+    }
+  }
+
+  void collide_pair(int i, int j) {
+    Hot<D>& a = hot_[i];
+    Hot<D>& b = hot_[j];
+    Vec<D> r = a.x - b.x;
+    for (int k = 0; k < D; ++k) {
+      if (!sys_.periodic[k]) continue;
+      if (r[k] > 0.5 * L_[k])
+        r[k] -= L_[k];
+      else if (r[k] < -0.5 * L_[k])
+        r[k] += L_[k];
+    }
+    const double dist = r.norm();
+    const Vec<D> n = r / dist;
+    const double u = (a.v - b.v).dot(n);
+    if (!(u < 0.0)) return;  // receding at contact (round-off): no collision
+    double e = all_elastic_ ? 1.0 : restitution(mat_[i], mat_[j], -u);
+    if (set_.tc > 0.0 && (now_ - last_[i] < set_.tc || now_ - last_[j] < set_.tc)) e = 1.0;
+    CollisionRecord<D> rec;
+    const bool log = !collision_observers_.empty();
+    if (log) {
+      rec.vi_before = a.v;
+      rec.vj_before = b.v;
+    }
+    const double J = smooth_pair_collision(a.v, b.v, m_[i], m_[j], n, e);
+    virial_ += J * dist;  // r_ij . dp_i with dp_i = J n
+    ++counter_[i];
+    ++counter_[j];
+    ++counts_.pair;
+    note_collision(i);
+    note_collision(j);
+    if (log) {
+      rec.time = now_;
+      rec.kind = EventKind::PairCollision;
+      rec.i = static_cast<std::uint32_t>(i);
+      rec.j = static_cast<std::uint32_t>(j);
+      rec.mi = m_[i];
+      rec.mj = m_[j];
+      rec.e = e;
+      rec.normal = n;
+      rec.vi_after = a.v;
+      rec.vj_after = b.v;
+      fill_spins(rec, i, j);
+      for (auto* o : collision_observers_) o->on_collision(rec);
+    }
+  }
+
+  void collide_wall(int i, int w) {
+    Hot<D>& a = hot_[i];
+    const auto& wall = sys_.walls[w];
+    const double u = a.v.dot(wall.normal);
+    if (!(u < 0.0)) {
+      // Resting on the wall within round-off (gravity presses it in, no normal speed left):
+      // the zero-time limit of a bouncing sequence. It counts towards the collapse detector so
+      // that a run without a remedy stops instead of repeating this event forever.
+      note_collision(i);
+      return;
+    }
+    double e = restitution(mat_[i], wall.material, -u);
+    if (set_.tc > 0.0 && now_ - last_[i] < set_.tc) e = 1.0;
+    CollisionRecord<D> rec;
+    const bool log = !collision_observers_.empty();
+    if (log) rec.vi_before = a.v;
+    smooth_wall_collision(a.v, m_[i], wall.normal, e);
+    ++counter_[i];
+    ++counts_.wall;
+    note_collision(i);
+    if (log) {
+      rec.time = now_;
+      rec.kind = EventKind::WallCollision;
+      rec.i = static_cast<std::uint32_t>(i);
+      rec.j = static_cast<std::uint32_t>(w);
+      rec.mi = m_[i];
+      rec.e = e;
+      rec.normal = wall.normal;
+      rec.vi_after = a.v;
+      fill_spins(rec, i, -1);
+      for (auto* o : collision_observers_) o->on_collision(rec);
+    }
+  }
+
+  void fill_spins(CollisionRecord<D>& rec, int i, int j) const {
+    if (sys_.w.empty()) return;
+    rec.wi_before = rec.wi_after = sys_.w[i];
+    if (j >= 0) rec.wj_before = rec.wj_after = sys_.w[j];
+  }
+
+  void emit_sample(double t, double interval) {
+    ++counts_.samples;
+    if (observers_.empty()) {
+      virial_ = 0.0;
+      return;
+    }
+    ThermoSample s;
+    s.time = t;
+    double mv2 = 0.0, pe = 0.0, rot = 0.0;
+    for (int i = 0; i < N_; ++i) {
+      const Hot<D>& h = hot_[i];
+      const double dt = t - h.t;
+      Vec<D> v = h.v, x = h.x;
+      if (dt != 0.0) {
+        x += h.v * dt + (0.5 * dt * dt) * g_;
+        v += g_ * dt;
+      }
+      mv2 += m_[i] * v.squaredNorm();
+      if (gravity_) pe -= m_[i] * g_.dot(x);
+    }
+    if (!sys_.w.empty())
+      for (int i = 0; i < N_; ++i)
+        rot += 0.5 * inertia_factor<D>() * m_[i] * hot_[i].R * hot_[i].R * sys_.w[i].squaredNorm();
+    s.kinetic_energy = 0.5 * mv2;
+    s.rotational_energy = rot;
+    s.potential_energy = pe;
+    s.temperature = N_ > 0 ? mv2 / (D * N_) : 0.0;
+    s.collisions = counts_.collisions();
+    // P V = N T + (1/(d dt)) sum_collisions r_ij . dp_i  (REFERENCES 2.3; Smallenburg's EDMD).
+    // The kinetic part uses the mean of the kinetic energies at the two ends of the interval.
+    const double ke_mean = prev_ke_ < 0.0 ? s.kinetic_energy : 0.5 * (prev_ke_ + s.kinetic_energy);
+    const double V = sys_.volume();
+    s.pressure = (2.0 * ke_mean / D + (interval > 0.0 ? virial_ / (D * interval) : 0.0)) / V;
+    prev_ke_ = s.kinetic_energy;
+    virial_ = 0.0;
+    for (auto* o : observers_) o->on_sample(s);
+  }
+
+  void measure_overlaps(RunResult<D>& res) {
+    double worst = 0.0, worst_rel = 0.0;
+    for (int i = 0; i < N_; ++i) {
+      const Hot<D>& a = hot_[i];
+      for_neighbours(i, [&](int j, const Vec<D>& shift) {
+        if (j < i) return;
+        const double sigma = a.R + hot_[j].R;
+        const double ov = sigma - (a.x - hot_[j].x - shift).norm();
+        if (ov > worst) worst = ov;
+        if (ov / sigma > worst_rel) worst_rel = ov / sigma;
+      });
+      for (const auto& wall : sys_.walls) {
+        const double ov = a.R - (a.x - wall.point).dot(wall.normal);
+        if (ov > worst) worst = ov;
+        if (ov / a.R > worst_rel) worst_rel = ov / a.R;
+      }
+    }
+    res.max_overlap = worst;
+    res.max_overlap_relative = worst_rel;
+  }
+
+  const System<D>& sys_;
+  EdmSettings set_;
+  int N_;
+  Queue queue_;
+  std::vector<Observer<D>*> observers_, collision_observers_;
+  Vec<D> g_, lo_, hi_, L_;
+  bool gravity_ = false, all_elastic_ = false;
+  double window_ = 0.0;
+  double now_ = 0.0;
+
+  std::vector<Hot<D>> hot_;
+  std::vector<double> m_;
+  std::vector<int> mat_;
+  std::vector<std::uint32_t> counter_;
+  std::vector<std::uint8_t> ev_type_, ev_aux_;
+  std::vector<int> ev_partner_;
+  std::vector<std::uint32_t> ev_pcount_;
+  std::vector<double> last_;
+  std::vector<int> rapid_;
+
+  std::array<int, D> nc_{}, stride_{};
+  Vec<D> cw_;
+  int ncells_total_ = 0;
+  std::vector<int> head_, next_, prev_;
+  std::vector<std::array<int, D>> cell_;
+
+  EventCounts counts_;
+  double virial_ = 0.0;
+  double prev_ke_ = -1.0;
+  std::string status_, message_;
+};
+
+}  // namespace
+
+template <int D>
+RunResult<D> run_edm(const System<D>& system, const EdmSettings& settings, QueueKind queue,
+                     const std::vector<Observer<D>*>& observers) {
+  if (queue == QueueKind::Heap) return EdmEngine<D, HeapQueue>(system, settings, observers).run();
+  return EdmEngine<D, CalendarQueue>(system, settings, observers).run();
+}
+
+template RunResult<2> run_edm<2>(const System<2>&, const EdmSettings&, QueueKind,
+                                 const std::vector<Observer<2>*>&);
+template RunResult<3> run_edm<3>(const System<3>&, const EdmSettings&, QueueKind,
+                                 const std::vector<Observer<3>*>&);
+
+}  // namespace matep

@@ -1,0 +1,51 @@
+// Event-driven dynamics (EDM) of smooth hard spheres (D = 3) and disks (D = 2).
+//
+// One event per particle lives in the queue (the earliest of its predicted pair collision, wall
+// collision and cell crossing); stale events are recognised by per-particle collision counters
+// (Smallenburg, Eur. Phys. J. E 45, 22 (2022), "Single" variant). Particles carry their own time
+// and are advanced only when an event touches them; predictions use a neighbour's stored state
+// without writing it (the lesson from DynamO's profile in DESIGN.md).
+#pragma once
+
+#include <cstdint>
+#include <string>
+#include <vector>
+
+#include "engine/observer.hpp"
+#include "engine/system.hpp"
+
+namespace matep {
+
+enum class QueueKind { Calendar, Heap };
+
+struct EventCounts {
+  std::uint64_t pair = 0;      // pair collisions resolved
+  std::uint64_t wall = 0;      // wall collisions resolved
+  std::uint64_t cell = 0;      // cell crossings
+  std::uint64_t stale = 0;     // popped events invalidated by a partner's collision
+  std::uint64_t samples = 0;   // thermo samples
+  std::uint64_t collisions() const { return pair + wall; }
+  std::uint64_t total() const { return pair + wall + cell + stale + samples; }
+};
+
+template <int D>
+struct RunResult {
+  std::string status = "ok";  // "ok" | "collapse" | "escaped" | "max_events"
+  std::string message;        // empty when ok
+  double time = 0.0;          // simulated time reached
+  EventCounts counts;
+  double wall_seconds = 0.0;
+  double max_overlap = 0.0;           // largest pair or wall overlap at the end (length)
+  double max_overlap_relative = 0.0;  // the same divided by the pair's contact distance
+  std::vector<Vec<D>> x, v;           // final state
+  std::vector<Spin<D>> w;
+};
+
+// Runs the system from t = 0 to settings.end_time (or until it stops early).
+// Throws std::invalid_argument for systems the engine cannot represent (e.g. a periodic axis
+// shorter than three largest diameters).
+template <int D>
+RunResult<D> run_edm(const System<D>& system, const EdmSettings& settings, QueueKind queue,
+                     const std::vector<Observer<D>*>& observers = {});
+
+}  // namespace matep

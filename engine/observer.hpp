@@ -1,0 +1,57 @@
+// Observers hang off the drivers: event log, thermo sampler, progress. The engine never prints;
+// it reports here. Hooks that a run does not need cost one predictable branch.
+#pragma once
+
+#include <cstdint>
+
+#include "engine/vec.hpp"
+
+namespace matep {
+
+enum class EventKind : std::uint8_t {
+  PairCollision = 1,
+  WallCollision = 2,
+  CellCrossing = 3,
+  ToSoft = 4,  // hybrid: particle switched to TDM
+  ToHard = 5,  // hybrid: particle switched back to EDM
+};
+
+// One resolved collision, with the state just before and just after it. For a wall collision
+// j is the wall index and mj, vj_*, wj_* are zero.
+template <int D>
+struct CollisionRecord {
+  double time = 0.0;
+  EventKind kind = EventKind::PairCollision;
+  std::uint32_t i = 0, j = 0;
+  double mi = 0.0, mj = 0.0;
+  double e = 1.0;  // normal restitution applied
+  Vec<D> normal = Vec<D>::Zero();
+  Vec<D> vi_before = Vec<D>::Zero(), vj_before = Vec<D>::Zero();
+  Vec<D> vi_after = Vec<D>::Zero(), vj_after = Vec<D>::Zero();
+  Spin<D> wi_before = Spin<D>::Zero(), wj_before = Spin<D>::Zero();
+  Spin<D> wi_after = Spin<D>::Zero(), wj_after = Spin<D>::Zero();
+};
+
+// A thermodynamic sample (one row of thermo.csv).
+struct ThermoSample {
+  double time = 0.0;
+  double kinetic_energy = 0.0;
+  double rotational_energy = 0.0;
+  double potential_energy = 0.0;  // -sum m g.x
+  double temperature = 0.0;       // (1/N) sum m v^2 / d
+  std::uint64_t collisions = 0;   // cumulative pair + wall collisions
+  double pressure = 0.0;          // kinetic + collisional virial over the last interval
+};
+
+template <int D>
+class Observer {
+ public:
+  virtual ~Observer() = default;
+  virtual bool wants_collisions() const { return false; }
+  virtual void on_collision(const CollisionRecord<D>&) {}
+  virtual void on_sample(const ThermoSample&) {}
+  // Called every few thousand events with the simulated time and the events so far.
+  virtual void on_progress(double /*time*/, std::uint64_t /*events*/) {}
+};
+
+}  // namespace matep

@@ -1,0 +1,82 @@
+// The validated description of a system the engine runs: geometry, materials, walls and the
+// initial particle state. io/ builds it from a scene file; tests build it directly.
+#pragma once
+
+#include <array>
+#include <cstdint>
+#include <limits>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "contact/restitution.hpp"
+#include "engine/vec.hpp"
+
+namespace matep {
+
+struct Material {
+  std::string name;
+  double density = 1.0;
+  Restitution restitution;
+  std::optional<double> young;     // Pa (TDM contact laws)
+  std::optional<double> poisson;   // -
+  std::optional<double> friction;  // Coulomb mu (rough spheres, TDM tangential)
+  // Soft-sphere (TDM) contact law, all optional; unset = the engine's default.
+  std::string contact;                           // "" (unset) | "linear" | "hertz" | "viscoelastic"
+  std::optional<double> stiffness;               // normal stiffness k_n (> 0)
+  std::optional<double> dissipation;             // normal damping gamma_n (>= 0)
+  std::optional<double> tangential_restitution;  // beta_t in [-1, 1]
+};
+
+template <int D>
+struct Wall {
+  std::string name;
+  Vec<D> point = Vec<D>::Zero();
+  Vec<D> normal = Vec<D>::Zero();  // unit; particles live on the side the normal points to
+  int material = 0;
+};
+
+template <int D>
+struct System {
+  Vec<D> lower = Vec<D>::Zero();
+  Vec<D> upper = Vec<D>::Ones();
+  std::array<bool, D> periodic{};
+  Vec<D> gravity = Vec<D>::Zero();
+  std::vector<Material> materials;
+  std::vector<Wall<D>> walls;
+
+  // Initial particle state, indexed by particle id.
+  std::vector<Vec<D>> x;
+  std::vector<Vec<D>> v;
+  std::vector<Spin<D>> w;
+  std::vector<double> radius;
+  std::vector<int> material;
+
+  std::size_t size() const { return x.size(); }
+  double volume() const {
+    double V = 1.0;
+    for (int k = 0; k < D; ++k) V *= upper[k] - lower[k];
+    return V;
+  }
+  // Mass of particle i: density times volume (3D) or times area per unit thickness (2D).
+  double mass(std::size_t i) const;
+};
+
+// Ball volume: 4/3 pi r^3 in 3D, pi r^2 in 2D (disks of unit thickness).
+template <int D>
+double ball_volume(double r);
+
+// Settings of an event-driven run (everything not part of the physical system).
+struct EdmSettings {
+  double end_time = 1.0;
+  double tc = 0.0;                // TC model (Luding & McNamara 1998); 0 = off
+  double thermo_interval = 0.0;   // 0 = only t = 0 and end
+  std::uint64_t max_events = std::numeric_limits<std::uint64_t>::max();
+  // Inelastic-collapse detector: a particle that has collapse_count consecutive collisions,
+  // each within collapse_window of the previous one, stops the run with status "collapse".
+  int collapse_count = 1000;
+  double collapse_window = 0.0;   // 0 = 1e-9 * end_time
+  bool log_events = false;
+};
+
+}  // namespace matep

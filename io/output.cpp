@@ -1,0 +1,316 @@
+#include "io/output.hpp"
+
+#include <fmt/format.h>
+
+#include <cerrno>
+#include <cmath>
+#include <cstring>
+
+namespace matep {
+
+namespace {
+
+std::FILE* open_or_throw(const std::string& path, const char* mode) {
+  std::FILE* f = std::fopen(path.c_str(), mode);
+  if (!f) throw IoError(fmt::format("{}: cannot open for writing: {}", path, std::strerror(errno)));
+  return f;
+}
+
+void put_u32(unsigned char* p, std::uint32_t v) { std::memcpy(p, &v, 4); }
+void put_u64(unsigned char* p, std::uint64_t v) { std::memcpy(p, &v, 8); }
+void put_f64(unsigned char* p, double v) { std::memcpy(p, &v, 8); }
+void put_v3(unsigned char* p, const double* v) { std::memcpy(p, v, 24); }
+std::uint32_t get_u32(const unsigned char* p) {
+  std::uint32_t v;
+  std::memcpy(&v, p, 4);
+  return v;
+}
+std::uint64_t get_u64(const unsigned char* p) {
+  std::uint64_t v;
+  std::memcpy(&v, p, 8);
+  return v;
+}
+double get_f64(const unsigned char* p) {
+  double v;
+  std::memcpy(&v, p, 8);
+  return v;
+}
+void get_v3(const unsigned char* p, double* v) { std::memcpy(v, p, 24); }
+
+template <int D>
+void to3(const Vec<D>& v, double* out) {
+  out[0] = v[0];
+  out[1] = v[1];
+  out[2] = D == 3 ? v[D - 1] : 0.0;
+}
+template <int D>
+void spin3(const Spin<D>& w, double* out) {
+  if constexpr (D == 2) {
+    out[0] = 0.0;
+    out[1] = 0.0;
+    out[2] = w[0];
+  } else {
+    out[0] = w[0];
+    out[1] = w[1];
+    out[2] = w[2];
+  }
+}
+
+// Field offsets of the version-1 record (README: "Event log").
+constexpr std::size_t kOffTime = 0, kOffKind = 8, kOffI = 12, kOffJ = 16, kOffMi = 24,
+                      kOffMj = 32, kOffE = 40, kOffNormal = 48, kOffViB = 72, kOffVjB = 96,
+                      kOffViA = 120, kOffVjA = 144, kOffWiB = 168, kOffWjB = 192, kOffWiA = 216,
+                      kOffWjA = 240;
+static_assert(kOffWjA + 24 == kEventRecordSize);
+
+}  // namespace
+
+void encode_event_record(const EventRecord& r, unsigned char* out) {
+  std::memset(out, 0, kEventRecordSize);
+  put_f64(out + kOffTime, r.time);
+  out[kOffKind] = r.kind;
+  put_u32(out + kOffI, r.i);
+  put_u32(out + kOffJ, r.j);
+  put_f64(out + kOffMi, r.mi);
+  put_f64(out + kOffMj, r.mj);
+  put_f64(out + kOffE, r.e);
+  put_v3(out + kOffNormal, r.normal);
+  put_v3(out + kOffViB, r.vi_before);
+  put_v3(out + kOffVjB, r.vj_before);
+  put_v3(out + kOffViA, r.vi_after);
+  put_v3(out + kOffVjA, r.vj_after);
+  put_v3(out + kOffWiB, r.wi_before);
+  put_v3(out + kOffWjB, r.wj_before);
+  put_v3(out + kOffWiA, r.wi_after);
+  put_v3(out + kOffWjA, r.wj_after);
+}
+
+EventRecord decode_event_record(const unsigned char* in) {
+  EventRecord r;
+  r.time = get_f64(in + kOffTime);
+  r.kind = in[kOffKind];
+  r.i = get_u32(in + kOffI);
+  r.j = get_u32(in + kOffJ);
+  r.mi = get_f64(in + kOffMi);
+  r.mj = get_f64(in + kOffMj);
+  r.e = get_f64(in + kOffE);
+  get_v3(in + kOffNormal, r.normal);
+  get_v3(in + kOffViB, r.vi_before);
+  get_v3(in + kOffVjB, r.vj_before);
+  get_v3(in + kOffViA, r.vi_after);
+  get_v3(in + kOffVjA, r.vj_after);
+  get_v3(in + kOffWiB, r.wi_before);
+  get_v3(in + kOffWjB, r.wj_before);
+  get_v3(in + kOffWiA, r.wi_after);
+  get_v3(in + kOffWjA, r.wj_after);
+  return r;
+}
+
+// ---- event log reader -----------------------------------------------------------------------
+
+EventLogReader::EventLogReader(const std::string& path) : path_(path) {
+  f_ = std::fopen(path.c_str(), "rb");
+  if (!f_) throw IoError(fmt::format("{}: cannot open event log: {}", path, std::strerror(errno)));
+  std::fseek(f_, 0, SEEK_END);
+  size_ = static_cast<std::uint64_t>(std::ftell(f_));
+  std::fseek(f_, 0, SEEK_SET);
+  unsigned char h[kEventLogHeaderSize];
+  if (size_ < kEventLogHeaderSize || std::fread(h, 1, kEventLogHeaderSize, f_) != kEventLogHeaderSize)
+    throw IoError(fmt::format("{}: truncated event log header at byte offset {} (file has {} bytes, "
+                              "header needs {})",
+                              path, 0, size_, kEventLogHeaderSize));
+  if (std::memcmp(h, kEventLogMagic, 8) != 0)
+    throw IoError(fmt::format("{}: not a matep event log (bad magic at byte offset 0)", path));
+  header_.version = get_u32(h + 8);
+  header_.dimension = get_u32(h + 12);
+  header_.record_size = get_u32(h + 16);
+  header_.particles = get_u64(h + 24);
+  if (header_.version != kEventLogVersion)
+    throw IoError(fmt::format("{}: event log version {} at byte offset 8 is not supported (this "
+                              "build reads version {})",
+                              path, header_.version, kEventLogVersion));
+  if (header_.record_size != kEventRecordSize || (header_.dimension != 2 && header_.dimension != 3))
+    throw IoError(fmt::format("{}: corrupt event log header (record size {}, dimension {})", path,
+                              header_.record_size, header_.dimension));
+  offset_ = kEventLogHeaderSize;
+}
+
+EventLogReader::~EventLogReader() {
+  if (f_) std::fclose(f_);
+}
+
+bool EventLogReader::next(EventRecord& rec) {
+  if (offset_ == size_) return false;
+  unsigned char buf[kEventRecordSize];
+  const std::size_t got = std::fread(buf, 1, kEventRecordSize, f_);
+  if (got != kEventRecordSize)
+    throw IoError(fmt::format("{}: truncated event record at byte offset {} ({} of {} bytes)", path_,
+                              offset_, got, kEventRecordSize));
+  rec = decode_event_record(buf);
+  if (rec.kind < 1 || rec.kind > 5)
+    throw IoError(fmt::format("{}: corrupt event record at byte offset {} (kind {})", path_, offset_,
+                              static_cast<int>(rec.kind)));
+  offset_ += kEventRecordSize;
+  return true;
+}
+
+// ---- event log writer -----------------------------------------------------------------------
+
+template <int D>
+EventLogWriter<D>::EventLogWriter(const std::string& path, std::uint64_t particles) : path_(path) {
+  f_ = open_or_throw(path, "wb");
+  buffer_.resize(1 << 20);
+  std::setvbuf(f_, buffer_.data(), _IOFBF, buffer_.size());
+  unsigned char h[kEventLogHeaderSize] = {};
+  std::memcpy(h, kEventLogMagic, 8);
+  put_u32(h + 8, kEventLogVersion);
+  put_u32(h + 12, D);
+  put_u32(h + 16, kEventRecordSize);
+  put_u64(h + 24, particles);
+  std::fwrite(h, 1, kEventLogHeaderSize, f_);
+}
+
+template <int D>
+EventLogWriter<D>::~EventLogWriter() {
+  close();
+}
+
+template <int D>
+void EventLogWriter<D>::close() {
+  if (f_) {
+    std::fclose(f_);
+    f_ = nullptr;
+  }
+}
+
+template <int D>
+void EventLogWriter<D>::on_collision(const CollisionRecord<D>& c) {
+  EventRecord r;
+  r.time = c.time;
+  r.kind = static_cast<std::uint8_t>(c.kind);
+  r.i = c.i;
+  r.j = c.j;
+  r.mi = c.mi;
+  r.mj = c.mj;
+  r.e = c.e;
+  to3<D>(c.normal, r.normal);
+  to3<D>(c.vi_before, r.vi_before);
+  to3<D>(c.vj_before, r.vj_before);
+  to3<D>(c.vi_after, r.vi_after);
+  to3<D>(c.vj_after, r.vj_after);
+  spin3<D>(c.wi_before, r.wi_before);
+  spin3<D>(c.wj_before, r.wj_before);
+  spin3<D>(c.wi_after, r.wi_after);
+  spin3<D>(c.wj_after, r.wj_after);
+  unsigned char buf[kEventRecordSize];
+  encode_event_record(r, buf);
+  if (std::fwrite(buf, 1, kEventRecordSize, f_) != kEventRecordSize)
+    throw IoError(fmt::format("{}: write failed: {}", path_, std::strerror(errno)));
+}
+
+template class EventLogWriter<2>;
+template class EventLogWriter<3>;
+
+// ---- thermo.csv -------------------------------------------------------------------------------
+
+ThermoCsvWriter::ThermoCsvWriter(const std::string& path) : path_(path) {
+  f_ = open_or_throw(path, "w");
+  std::fputs("time,kinetic_energy,rotational_energy,potential_energy,temperature,collisions,pressure\n",
+             f_);
+}
+
+ThermoCsvWriter::~ThermoCsvWriter() {
+  if (f_) std::fclose(f_);
+}
+
+void ThermoCsvWriter::on_sample(const ThermoSample& s) {
+  fmt::print(f_, "{:.17g},{:.17g},{:.17g},{:.17g},{:.17g},{},{:.17g}\n", s.time, s.kinetic_energy,
+             s.rotational_energy, s.potential_energy, s.temperature, s.collisions, s.pressure);
+  std::fflush(f_);  // a run that stops early keeps every row written so far
+}
+
+// ---- final_state.csv --------------------------------------------------------------------------
+
+template <int D>
+void write_final_state(const std::string& path, const RunResult<D>& res,
+                       const std::vector<double>& radius) {
+  std::FILE* f = open_or_throw(path, "w");
+  if constexpr (D == 3)
+    std::fputs("id,x,y,z,vx,vy,vz,wx,wy,wz,radius\n", f);
+  else
+    std::fputs("id,x,y,vx,vy,w,radius\n", f);
+  for (std::size_t i = 0; i < res.x.size(); ++i) {
+    const auto& x = res.x[i];
+    const auto& v = res.v[i];
+    const auto& w = res.w[i];
+    if constexpr (D == 3)
+      fmt::print(f, "{},{:.17g},{:.17g},{:.17g},{:.17g},{:.17g},{:.17g},{:.17g},{:.17g},{:.17g},{:.17g}\n",
+                 i, x[0], x[1], x[2], v[0], v[1], v[2], w[0], w[1], w[2], radius[i]);
+    else
+      fmt::print(f, "{},{:.17g},{:.17g},{:.17g},{:.17g},{:.17g},{:.17g}\n", i, x[0], x[1], v[0], v[1],
+                 w[0], radius[i]);
+  }
+  std::fclose(f);
+}
+
+template void write_final_state<2>(const std::string&, const RunResult<2>&, const std::vector<double>&);
+template void write_final_state<3>(const std::string&, const RunResult<3>&, const std::vector<double>&);
+
+// ---- summary.json -----------------------------------------------------------------------------
+
+namespace {
+std::string json_string(const std::string& s) {
+  std::string out = "\"";
+  for (char c : s) {
+    switch (c) {
+      case '"': out += "\\\""; break;
+      case '\\': out += "\\\\"; break;
+      case '\n': out += "\\n"; break;
+      case '\t': out += "\\t"; break;
+      default:
+        if (static_cast<unsigned char>(c) < 0x20)
+          out += fmt::format("\\u{:04x}", static_cast<int>(c));
+        else
+          out += c;
+    }
+  }
+  return out + "\"";
+}
+std::string json_number(double v) {
+  if (!std::isfinite(v)) return "null";
+  return fmt::format("{:.17g}", v);
+}
+}  // namespace
+
+template <int D>
+void write_summary(const std::string& path, const SummaryInfo& info, const RunResult<D>& r) {
+  std::FILE* f = open_or_throw(path, "w");
+  const double wall = r.wall_seconds > 0.0 ? r.wall_seconds : 1e-9;
+  fmt::print(f, "{{\n");
+  fmt::print(f, "  \"scene\": {},\n", json_string(info.scene));
+  fmt::print(f, "  \"method\": {},\n", json_string(info.method));
+  fmt::print(f, "  \"queue\": {},\n", json_string(info.queue));
+  fmt::print(f, "  \"dimension\": {},\n", info.dimension);
+  fmt::print(f, "  \"particles\": {},\n", info.particles);
+  fmt::print(f, "  \"seed\": {},\n", info.seed);
+  fmt::print(f, "  \"end_time\": {},\n", json_number(info.end_time));
+  fmt::print(f, "  \"time_reached\": {},\n", json_number(r.time));
+  fmt::print(f, "  \"wall_seconds\": {},\n", json_number(r.wall_seconds));
+  fmt::print(f, "  \"events\": {{\"pair_collisions\": {}, \"wall_collisions\": {}, \"cell_crossings\": {}, "
+             "\"stale\": {}, \"thermo_samples\": {}, \"total\": {}}},\n",
+             r.counts.pair, r.counts.wall, r.counts.cell, r.counts.stale, r.counts.samples,
+             r.counts.total());
+  fmt::print(f, "  \"events_per_second\": {},\n", json_number(r.counts.total() / wall));
+  fmt::print(f, "  \"collisions_per_second\": {},\n", json_number(r.counts.collisions() / wall));
+  fmt::print(f, "  \"max_overlap\": {},\n", json_number(r.max_overlap));
+  fmt::print(f, "  \"max_overlap_relative\": {},\n", json_number(r.max_overlap_relative));
+  fmt::print(f, "  \"status\": {},\n", json_string(r.status));
+  fmt::print(f, "  \"message\": {}\n", json_string(r.message));
+  fmt::print(f, "}}\n");
+  std::fclose(f);
+}
+
+template void write_summary<2>(const std::string&, const SummaryInfo&, const RunResult<2>&);
+template void write_summary<3>(const std::string&, const SummaryInfo&, const RunResult<3>&);
+
+}  // namespace matep

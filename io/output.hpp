@@ -1,0 +1,112 @@
+// Run outputs: thermo.csv, final_state.csv, summary.json and the binary event log events.bin.
+// Formats are documented in README.md ("Outputs").
+#pragma once
+
+#include <cstdint>
+#include <cstdio>
+#include <memory>
+#include <stdexcept>
+#include <string>
+#include <vector>
+
+#include "engine/edm.hpp"
+#include "engine/observer.hpp"
+
+namespace matep {
+
+class IoError : public std::runtime_error {
+ public:
+  using std::runtime_error::runtime_error;
+};
+
+// Event log layout, version 1 (little-endian). A 64-byte header: magic "MATEPLOG", u32 version,
+// u32 dimension, u32 record size, u32 reserved, u64 particle count, zero padding. Then records
+// of kEventRecordSize bytes (vectors always have 3 components; 2D leaves z = 0 and stores the
+// disk spin in the z component).
+inline constexpr char kEventLogMagic[8] = {'M', 'A', 'T', 'E', 'P', 'L', 'O', 'G'};
+inline constexpr std::uint32_t kEventLogVersion = 1;
+inline constexpr std::size_t kEventLogHeaderSize = 64;
+inline constexpr std::size_t kEventRecordSize = 264;
+
+// The record as read back (3-component vectors regardless of dimension).
+struct EventRecord {
+  double time = 0.0;
+  std::uint8_t kind = 0;
+  std::uint32_t i = 0, j = 0;
+  double mi = 0.0, mj = 0.0, e = 0.0;
+  double normal[3]{}, vi_before[3]{}, vj_before[3]{}, vi_after[3]{}, vj_after[3]{};
+  double wi_before[3]{}, wj_before[3]{}, wi_after[3]{}, wj_after[3]{};
+};
+
+void encode_event_record(const EventRecord& r, unsigned char* out);
+EventRecord decode_event_record(const unsigned char* in);
+
+struct EventLogHeader {
+  std::uint32_t version = kEventLogVersion;
+  std::uint32_t dimension = 3;
+  std::uint32_t record_size = kEventRecordSize;
+  std::uint64_t particles = 0;
+};
+
+// Streams records from events.bin; throws IoError naming the file and byte offset on a bad
+// header, a wrong version or a truncated record.
+class EventLogReader {
+ public:
+  explicit EventLogReader(const std::string& path);
+  ~EventLogReader();
+  const EventLogHeader& header() const { return header_; }
+  bool next(EventRecord& rec);  // false at a clean end of file
+  std::uint64_t offset() const { return offset_; }
+
+ private:
+  std::string path_;
+  std::FILE* f_ = nullptr;
+  EventLogHeader header_;
+  std::uint64_t offset_ = 0;
+  std::uint64_t size_ = 0;
+};
+
+template <int D>
+class EventLogWriter final : public Observer<D> {
+ public:
+  EventLogWriter(const std::string& path, std::uint64_t particles);
+  ~EventLogWriter() override;
+  bool wants_collisions() const override { return true; }
+  void on_collision(const CollisionRecord<D>& rec) override;
+  void close();
+
+ private:
+  std::string path_;
+  std::FILE* f_ = nullptr;
+  std::vector<char> buffer_;
+};
+
+class ThermoCsvWriter final : public Observer<2>, public Observer<3> {
+ public:
+  explicit ThermoCsvWriter(const std::string& path);
+  ~ThermoCsvWriter() override;
+  void on_sample(const ThermoSample& s) override;
+
+ private:
+  std::string path_;
+  std::FILE* f_ = nullptr;
+};
+
+template <int D>
+void write_final_state(const std::string& path, const RunResult<D>& result,
+                       const std::vector<double>& radius);
+
+struct SummaryInfo {
+  std::string scene;
+  std::string method;
+  std::string queue;
+  int dimension = 3;
+  std::uint64_t particles = 0;
+  std::uint64_t seed = 0;
+  double end_time = 0.0;
+};
+
+template <int D>
+void write_summary(const std::string& path, const SummaryInfo& info, const RunResult<D>& result);
+
+}  // namespace matep

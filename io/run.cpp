@@ -1,0 +1,173 @@
+#include "io/run.hpp"
+
+#include <fmt/format.h>
+
+#include <cmath>
+#include <filesystem>
+#include <numbers>
+#include <stdexcept>
+
+#include "io/output.hpp"
+
+namespace matep {
+
+namespace {
+
+EdmSettings edm_settings(const Scene& s) {
+  EdmSettings e;
+  e.end_time = s.end_time;
+  e.tc = s.tc;
+  e.thermo_interval = s.output.thermo_interval;
+  if (s.max_events > 0) e.max_events = s.max_events;
+  e.collapse_count = s.collapse_count;
+  e.collapse_window = s.collapse_window;
+  e.log_events = s.output.events;
+  return e;
+}
+
+class ProgressObserver final : public Observer<2>, public Observer<3> {
+ public:
+  ProgressObserver(const ProgressFn& fn, double end_time) : fn_(fn), end_(end_time) {}
+  void on_progress(double t, std::uint64_t events) override {
+    fn_(t, end_ > 0.0 ? t / end_ : 1.0, events);
+  }
+
+ private:
+  ProgressFn fn_;
+  double end_;
+};
+
+template <int D>
+RunOutcome run_system(const Scene& scene, const System<D>& sys, const std::string& dir,
+                      const ProgressFn& progress) {
+  if (scene.method != "edm")
+    throw SceneError(fmt::format("{}: run.method: \"{}\" is not available in this version of matep "
+                                 "(available: \"edm\")",
+                                 scene.path, scene.method));
+  std::filesystem::create_directories(dir);
+  const EdmSettings settings = edm_settings(scene);
+  ThermoCsvWriter thermo(dir + "/thermo.csv");
+  std::unique_ptr<EventLogWriter<D>> log;
+  std::vector<Observer<D>*> observers{static_cast<Observer<D>*>(&thermo)};
+  if (scene.output.events) {
+    log = std::make_unique<EventLogWriter<D>>(dir + "/events.bin", sys.size());
+    observers.push_back(log.get());
+  }
+  std::unique_ptr<ProgressObserver> prog;
+  if (progress) {
+    prog = std::make_unique<ProgressObserver>(progress, scene.end_time);
+    observers.push_back(static_cast<Observer<D>*>(prog.get()));
+  }
+  const QueueKind q = scene.queue == "heap" ? QueueKind::Heap : QueueKind::Calendar;
+  RunResult<D> res = run_edm<D>(sys, settings, q, observers);
+  if (log) log->close();
+  write_final_state<D>(dir + "/final_state.csv", res, sys.radius);
+  SummaryInfo info;
+  info.scene = scene.path;
+  info.method = scene.method;
+  info.queue = scene.queue;
+  info.dimension = D;
+  info.particles = sys.size();
+  info.seed = scene.seed;
+  info.end_time = scene.end_time;
+  write_summary<D>(dir + "/summary.json", info, res);
+  RunOutcome out;
+  out.status = res.status;
+  out.message = res.message;
+  out.out_dir = dir;
+  out.wall_seconds = res.wall_seconds;
+  out.collisions = res.counts.collisions();
+  return out;
+}
+
+// Contact value of the pair distribution: Carnahan-Starling (3D), Henderson (2D)
+// (REFERENCES 2.2).
+double contact_g(int d, double phi) {
+  if (d == 3) return (1.0 - phi / 2.0) / std::pow(1.0 - phi, 3);
+  return (1.0 - 7.0 * phi / 16.0) / std::pow(1.0 - phi, 2);
+}
+
+std::string restitution_text(const Restitution& r) {
+  switch (r.model) {
+    case Restitution::Model::Constant: return fmt::format("constant e = {}", r.e);
+    case Restitution::Model::Power: return fmt::format("power law e = {} u^-{} (capped at 1)", r.B, r.b);
+    case Restitution::Model::Schwager:
+      return fmt::format("Schwager-Poschel e = 1 - (1 - {})(u/{})^{}", r.e0, r.u0, r.n);
+    case Restitution::Model::Exponential: return fmt::format("exponential e = {} exp(-{} u)", r.C, r.a);
+  }
+  return "?";
+}
+
+template <int D>
+std::string describe(const Scene& scene, const System<D>& sys) {
+  std::string s;
+  s += fmt::format("scene        {}\n", scene.path);
+  s += fmt::format("dimension    {} ({})\n", D, D == 3 ? "spheres" : "disks");
+  s += fmt::format("particles    {}\n", sys.size());
+  std::vector<std::size_t> per_group(scene.group_names.size(), 0);
+  for (int g : scene.group) ++per_group[g];
+  for (std::size_t g = 0; g < per_group.size(); ++g)
+    s += fmt::format("  [particles.{}] {}\n", scene.group_names[g], per_group[g]);
+  s += fmt::format("method       {}", scene.method);
+  if (scene.method == "edm")
+    s += fmt::format(" (event-driven hard {}, {} queue)\n", D == 3 ? "spheres" : "disks", scene.queue);
+  else
+    s += " (not available in this version)\n";
+  s += "contact      smooth instantaneous collisions (no friction, no rotation modelled)\n";
+  for (const auto& m : sys.materials) {
+    s += fmt::format("  [material.{}] density {}, restitution {}\n", m.name, m.density,
+                     restitution_text(m.restitution));
+    if (m.friction && *m.friction > 0.0)
+      s += fmt::format("    note: friction = {} is not used by smooth EDM\n", *m.friction);
+  }
+  std::string per;
+  for (int k = 0; k < D; ++k) per += sys.periodic[k] ? "yes " : "no ";
+  s += fmt::format("domain       lower {}  upper {}  periodic {}\n", fmt::join(sys.lower, ", "),
+                   fmt::join(sys.upper, ", "), per);
+  for (const auto& w : sys.walls)
+    s += fmt::format("  [wall.{}] plane through ({}) normal ({})\n", w.name, fmt::join(w.point, ", "),
+                     fmt::join(w.normal, ", "));
+  if (sys.gravity.squaredNorm() > 0.0)
+    s += fmt::format("gravity      ({})\n", fmt::join(sys.gravity, ", "));
+  if (scene.tc > 0.0) s += fmt::format("TC model     collisions within {} of a previous one are elastic\n", scene.tc);
+  // Predicted collision rate from Enskog theory (REFERENCES 2.1).
+  double vol = 0.0, mv2 = 0.0, msum = 0.0, dsum = 0.0;
+  for (std::size_t i = 0; i < sys.size(); ++i) {
+    vol += ball_volume<D>(sys.radius[i]);
+    const double m = sys.mass(i);
+    mv2 += m * sys.v[i].squaredNorm();
+    msum += m;
+    dsum += 2.0 * sys.radius[i];
+  }
+  const double n = static_cast<double>(sys.size());
+  const double phi = vol / sys.volume();
+  s += fmt::format("packing      {:.4f}\n", phi);
+  if (n > 1 && mv2 > 0.0 && phi < 0.7) {
+    const double T = mv2 / (D * n), m = msum / n, sigma = dsum / n;
+    const double g = contact_g(D, phi);
+    const double omega = (D == 3 ? 24.0 : 8.0) * phi * g / (std::sqrt(std::numbers::pi) * sigma) *
+                         std::sqrt(T / m);
+    s += fmt::format("predicted    {:.4g} collisions per unit time (Enskog, elastic, initial T = {:.4g}); "
+                     "about {:.3g} collisions to end_time = {}\n",
+                     0.5 * n * omega, T, 0.5 * n * omega * scene.end_time, scene.end_time);
+  }
+  s += fmt::format("outputs      {}/ thermo.csv{} final_state.csv summary.json{}\n", scene.output.dir,
+                   scene.output.thermo_interval > 0.0
+                       ? fmt::format(" (every {})", scene.output.thermo_interval)
+                       : std::string(" (t = 0 and end)"),
+                   scene.output.events ? " events.bin" : "");
+  return s;
+}
+
+}  // namespace
+
+RunOutcome run_scene(const Scene& scene, const std::string& out_dir, const ProgressFn& progress) {
+  return std::visit([&](const auto& sys) { return run_system(scene, sys, out_dir, progress); },
+                    scene.system);
+}
+
+std::string describe_scene(const Scene& scene) {
+  return std::visit([&](const auto& sys) { return describe(scene, sys); }, scene.system);
+}
+
+}  // namespace matep

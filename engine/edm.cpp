@@ -79,7 +79,7 @@ class EdmEngine {
     const int sample_id = N_, end_id = N_ + 1;
     emit_sample(0.0, /*interval=*/0.0);
     for (int i = 0; i < N_; ++i) predict(i, 0.0);
-    if (set_.thermo_interval > 0.0 && set_.thermo_interval < set_.end_time)
+    if (set_.thermo_interval > 0.0 && set_.thermo_interval < set_.end_time * (1.0 - 1e-12))
       queue_.set(sample_id, set_.thermo_interval);
     queue_.set(end_id, set_.end_time);
     std::uint64_t sample_k = 1;
@@ -97,7 +97,8 @@ class EdmEngine {
         last_sample_time = t;
         ++sample_k;
         const double next = static_cast<double>(sample_k) * set_.thermo_interval;
-        if (next < set_.end_time) queue_.set(sample_id, next);
+        // The end of the run writes its own row; skip a sample that would fall on it.
+        if (next < set_.end_time * (1.0 - 1e-12)) queue_.set(sample_id, next);
         continue;
       }
       if (++processed >= set_.max_events) {

@@ -328,7 +328,7 @@ class EdmEngine {
         status_ = "collapse";
         message_ = fmt::format(
             "inelastic collapse: particle {} had {} consecutive collisions less than {:.3g} "
-            "apart, at t = {:.17g}; use run.tc (TC model) or method = \"hybrid\"",
+            "apart, at t = {:.17g}; set run.tc > 0 (TC model) to make such collisions elastic",
             i, rapid_[i], window_, now_);
       }
     } else {

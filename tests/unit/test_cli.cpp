@@ -1,0 +1,186 @@
+// The matep command line end to end: outputs and their formats, --set, check, exit codes and
+// messages for bad input and for runs that stop early.
+#include <gtest/gtest.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include <algorithm>
+
+#include <array>
+#include <cstdio>
+#include <filesystem>
+#include <fstream>
+#include <sstream>
+#include <string>
+
+#include "io/output.hpp"
+
+namespace fs = std::filesystem;
+
+namespace {
+
+struct Result {
+  int code = -1;
+  std::string out;  // stdout and stderr together
+};
+
+Result sh(const std::string& args) {
+  const std::string cmd = std::string(MATEP_CLI) + " " + args + " 2>&1";
+  Result r;
+  FILE* p = popen(cmd.c_str(), "r");
+  std::array<char, 4096> buf;
+  while (p && std::fgets(buf.data(), buf.size(), p)) r.out += buf.data();
+  const int status = p ? pclose(p) : -1;
+  r.code = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
+  return r;
+}
+
+std::string slurp(const fs::path& p) {
+  std::ifstream f(p);
+  std::stringstream s;
+  s << f.rdbuf();
+  return s.str();
+}
+
+fs::path tmpdir(const std::string& name) {
+  const fs::path d = fs::temp_directory_path() / ("matep_cli_" + name + "_" + std::to_string(::getpid()));
+  fs::remove_all(d);
+  fs::create_directories(d);
+  return d;
+}
+
+const std::string kCases = std::string(MATEP_SOURCE_DIR) + "/cases/";
+
+std::string first_line(const std::string& s) { return s.substr(0, s.find('\n')); }
+
+}  // namespace
+
+TEST(Cli, VersionAndHelp) {
+  const Result v = sh("--version");
+  EXPECT_EQ(v.code, 0);
+  EXPECT_EQ(v.out.rfind("matep ", 0), 0u);
+  const Result h = sh("--help");
+  EXPECT_EQ(h.code, 0);
+  EXPECT_NE(h.out.find("matep run SCENE.toml"), std::string::npos);
+  const Result bad = sh("frobnicate");
+  EXPECT_EQ(bad.code, 2);
+  EXPECT_NE(bad.out.find("unknown command"), std::string::npos);
+}
+
+TEST(Cli, RunWritesEveryOutputWithTheDocumentedHeaders) {
+  const fs::path d = tmpdir("run");
+  const Result r = sh("run " + kCases + "elastic_gas.toml --set run.end_time=1.0 --out " + d.string());
+  ASSERT_EQ(r.code, 0) << r.out;
+  EXPECT_NE(r.out.find(d.string()), std::string::npos);  // says where the output went
+  const std::string thermo = slurp(d / "thermo.csv");
+  EXPECT_EQ(first_line(thermo),
+            "time,kinetic_energy,rotational_energy,potential_energy,temperature,collisions,pressure");
+  // One row at t = 0 and one per interval (0.5) up to end_time = 1: header + 3 rows.
+  EXPECT_EQ(std::count(thermo.begin(), thermo.end(), '\n'), 4);
+  EXPECT_EQ(first_line(slurp(d / "final_state.csv")), "id,x,y,z,vx,vy,vz,wx,wy,wz,radius");
+  const std::string summary = slurp(d / "summary.json");
+  EXPECT_NE(summary.find("\"status\": \"ok\""), std::string::npos);
+  EXPECT_NE(summary.find("\"end_time\": 1,"), std::string::npos) << summary;  // --set took effect
+  EXPECT_NE(summary.find("\"events_per_second\""), std::string::npos);
+  EXPECT_NE(summary.find("\"max_overlap\""), std::string::npos);
+  // The event log holds exactly the collisions the summary counts, each conserving momentum.
+  matep::EventLogReader log((d / "events.bin").string());
+  EXPECT_EQ(log.header().dimension, 3u);
+  EXPECT_EQ(log.header().particles, 2744u);
+  matep::EventRecord rec;
+  std::uint64_t n = 0;
+  double last_time = 0.0;
+  while (log.next(rec)) {
+    ++n;
+    EXPECT_GE(rec.time, last_time);
+    last_time = rec.time;
+    for (int k = 0; k < 3; ++k)
+      EXPECT_NEAR(rec.mi * (rec.vi_after[k] - rec.vi_before[k]) + rec.mj * (rec.vj_after[k] - rec.vj_before[k]), 0.0,
+                  1e-12);
+  }
+  const auto pos = summary.find("\"pair_collisions\": ");
+  ASSERT_NE(pos, std::string::npos);
+  EXPECT_EQ(std::stoull(summary.substr(pos + 19)), n);
+  fs::remove_all(d);
+}
+
+TEST(Cli, TwoDimensionalFinalStateHeader) {
+  const fs::path d = tmpdir("run2d");
+  const Result r = sh("run " + kCases + "disks_in_a_box.toml --set run.end_time=0.2 --out " + d.string());
+  ASSERT_EQ(r.code, 0) << r.out;
+  EXPECT_EQ(first_line(slurp(d / "final_state.csv")), "id,x,y,vx,vy,w,radius");
+  fs::remove_all(d);
+}
+
+TEST(Cli, CollapseStopsWithStatusMessageAndKeepsOutputs) {
+  const fs::path d = tmpdir("collapse");
+  const Result r = sh("run " + kCases + "bouncing_ball.toml --out " + d.string());
+  EXPECT_EQ(r.code, 3) << r.out;
+  EXPECT_NE(r.out.find("inelastic collapse: particle 0"), std::string::npos) << r.out;
+  EXPECT_NE(r.out.find("bouncing_ball.toml"), std::string::npos) << r.out;
+  EXPECT_NE(slurp(d / "summary.json").find("\"status\": \"collapse\""), std::string::npos);
+  // thermo rows up to the collapse (every 0.01 s until 4.06 s) were kept.
+  const std::string thermo = slurp(d / "thermo.csv");
+  EXPECT_GT(std::count(thermo.begin(), thermo.end(), '\n'), 400);
+  EXPECT_TRUE(fs::exists(d / "final_state.csv"));
+  EXPECT_TRUE(fs::exists(d / "events.bin"));
+  // The TC model keeps it bouncing to the end.
+  const Result tc = sh("run " + kCases + "bouncing_ball.toml --set run.tc=0.001 --out " + d.string());
+  EXPECT_EQ(tc.code, 0) << tc.out;
+  fs::remove_all(d);
+}
+
+TEST(Cli, CheckDescribesWhatWillBeModelled) {
+  const Result r = sh("check " + kCases + "default.toml");
+  ASSERT_EQ(r.code, 0) << r.out;
+  EXPECT_NE(r.out.find("particles    8000"), std::string::npos) << r.out;
+  EXPECT_NE(r.out.find("no rotation modelled"), std::string::npos);
+  EXPECT_NE(r.out.find("collisions per unit time"), std::string::npos);
+}
+
+TEST(Cli, BadInputGetsOneClearMessageAndExitStatus2) {
+  const fs::path d = tmpdir("bad");
+  const fs::path scene = d / "bad.toml";
+  {
+    std::ofstream f(scene);
+    f << "[run]\ndimension = 3\nend_time = 1.0\ncolour = \"red\"\n"
+         "[domain]\nlower = [0,0,0]\nupper = [10,10,10]\nperiodic = [true,true,true]\n";
+  }
+  const Result r = sh("run " + scene.string() + " --out " + (d / "o").string());
+  EXPECT_EQ(r.code, 2);
+  EXPECT_NE(r.out.find("bad.toml"), std::string::npos) << r.out;
+  EXPECT_NE(r.out.find("run.colour"), std::string::npos) << r.out;
+  EXPECT_EQ(std::count(r.out.begin(), r.out.end(), '\n'), 1) << r.out;  // one line
+  EXPECT_FALSE(fs::exists(d / "o"));                                   // nothing half-written
+  const Result s = sh("check " + kCases + "default.toml --set material.grain.restitution=1.5");
+  EXPECT_EQ(s.code, 2);
+  EXPECT_NE(s.out.find("material.grain.restitution"), std::string::npos) << s.out;
+  EXPECT_NE(s.out.find("1.5"), std::string::npos) << s.out;
+  const Result m = sh("run " + (d / "missing.toml").string());
+  EXPECT_EQ(m.code, 2);
+  EXPECT_NE(m.out.find("missing.toml"), std::string::npos) << m.out;
+  fs::remove_all(d);
+}
+
+TEST(Cli, TruncatedEventLogIsReportedWithItsByteOffset) {
+  const fs::path d = tmpdir("trunc");
+  ASSERT_EQ(sh("run " + kCases + "elastic_gas.toml --set run.end_time=0.05 --out " + d.string()).code, 0);
+  const fs::path log = d / "events.bin";
+  const auto size = fs::file_size(log);
+  ASSERT_GT(size, matep::kEventLogHeaderSize + 2 * matep::kEventRecordSize);
+  fs::resize_file(log, size - 10);
+  matep::EventLogReader reader(log.string());
+  matep::EventRecord rec;
+  try {
+    while (reader.next(rec)) {
+    }
+    FAIL() << "truncation not detected";
+  } catch (const matep::IoError& e) {
+    const std::string msg = e.what();
+    // The last record started one record length before the original end of the file.
+    EXPECT_NE(msg.find("truncated event record at byte offset " + std::to_string(size - matep::kEventRecordSize)),
+              std::string::npos)
+        << msg;
+  }
+  fs::remove_all(d);
+}

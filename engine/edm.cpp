@@ -52,8 +52,10 @@ class EdmEngine {
     m_.resize(N_);
     mat_.resize(N_);
     counter_.assign(N_, 0);
+    ev_t_.assign(N_, kNever);
     ev_type_.assign(N_, kNone);
-    ev_aux_.assign(N_, 0);
+    cross_t_.assign(N_, kNever);
+    cross_aux_.assign(N_, 0);
     ev_partner_.assign(N_, -1);
     ev_pcount_.assign(N_, 0);
     last_.assign(N_, -kNever);
@@ -71,6 +73,7 @@ class EdmEngine {
     all_elastic_ = true;
     for (const auto& mat : sys.materials) all_elastic_ = all_elastic_ && mat.restitution.is_elastic();
     build_cells(2.0 * rmax);
+    cand_.reserve(256);
   }
 
   RunResult<D> run() {
@@ -136,7 +139,7 @@ class EdmEngine {
   }
 
  private:
-  enum : std::uint8_t { kNone = 0, kPair = 1, kWall = 2, kCross = 3 };
+  enum : std::uint8_t { kNone = 0, kPair = 1, kWall = 2 };
 
   // ---- cells ---------------------------------------------------------------------------------
   void build_cells(double dmax) {
@@ -200,16 +203,20 @@ class EdmEngine {
     if (next_[i] >= 0) prev_[next_[i]] = prev_[i];
   }
 
-  // Visits every particle j != i in the 3^D cells around i's cell with the image shift that
-  // brings j next to i: f(j, shift).
-  template <class F>
-  void for_neighbours(int i, F&& f) const {
-    std::array<int, D> c = cell_[i];
+  // Collects the particles j != i of the cells around i's cell into cand_, each with the slot of
+  // the image shift that brings it next to i. With layer_axis < 0 these are all 3^D cells; else
+  // only the layer one cell further along layer_axis in direction layer_dir (the cells that just
+  // came into range after a cell crossing). Gathering first and evaluating afterwards lets the
+  // neighbours' states be fetched from memory in parallel instead of one list link at a time.
+  void gather(int i, int layer_axis = -1, int layer_dir = 0) {
+    const std::array<int, D> c = cell_[i];
     std::array<int, 3> nk[D];
     std::array<double, 3> sk[D];
     std::array<int, D> count{};
     for (int k = 0; k < D; ++k) {
-      for (int o = -1; o <= 1; ++o) {
+      const int olo = (k == layer_axis) ? layer_dir : -1;
+      const int ohi = (k == layer_axis) ? layer_dir : 1;
+      for (int o = olo; o <= ohi; ++o) {
         int cc = c[k] + o;
         double s = 0.0;
         if (cc < 0) {
@@ -226,23 +233,30 @@ class EdmEngine {
         ++count[k];
       }
     }
-    Vec<D> shift;
+    cand_.clear();
+    int slot = 0;
+    auto add_cell = [&](int lin, const Vec<D>& shift) {
+      shift_[slot] = shift;
+      for (int j = head_[lin]; j >= 0; j = next_[j])
+        if (j != i) cand_.push_back({j, slot});
+      ++slot;
+    };
     if constexpr (D == 2) {
       for (int a = 0; a < count[0]; ++a)
-        for (int b = 0; b < count[1]; ++b) {
-          shift << sk[0][a], sk[1][b];
-          for (int j = head_[nk[0][a] + nk[1][b]]; j >= 0; j = next_[j])
-            if (j != i) f(j, shift);
-        }
+        for (int b = 0; b < count[1]; ++b) add_cell(nk[0][a] + nk[1][b], Vec<D>(sk[0][a], sk[1][b]));
     } else {
       for (int a = 0; a < count[0]; ++a)
         for (int b = 0; b < count[1]; ++b)
-          for (int cidx = 0; cidx < count[2]; ++cidx) {
-            shift << sk[0][a], sk[1][b], sk[2][cidx];
-            for (int j = head_[nk[0][a] + nk[1][b] + nk[2][cidx]]; j >= 0; j = next_[j])
-              if (j != i) f(j, shift);
-          }
+          for (int e = 0; e < count[2]; ++e)
+            add_cell(nk[0][a] + nk[1][b] + nk[2][e], Vec<D>(sk[0][a], sk[1][b], sk[2][e]));
     }
+  }
+
+  // Visits every particle j != i in the 3^D cells around i: f(j, shift).
+  template <class F>
+  void for_neighbours(int i, F&& f) {
+    gather(i);
+    for (const auto& c : cand_) f(c.j, shift_[c.slot]);
   }
 
   // ---- motion ---------------------------------------------------------------------------------
@@ -259,42 +273,41 @@ class EdmEngine {
     h.t = t;
   }
 
-  // Predicts and schedules particle i's next event. i must be at time `now`.
-  void predict(int i, double now) {
-    const Hot<D>& hi = hot_[i];
+  // ---- prediction -----------------------------------------------------------------------------
+  // Each particle keeps two predictions: its earliest pair or wall event (ev_*) and its next cell
+  // crossing (cross_*); the queue holds the earlier of the two. A crossing does not change the
+  // particle's course, so afterwards only the cells that came into range need scanning.
+
+  // Earliest cell-face crossing of particle i (at time `now`).
+  void predict_crossing(int i, double now) {
+    const Hot<D>& h = hot_[i];
     double best = kNever;
-    std::uint8_t type = kNone, aux = 0;
-    int partner = -1;
-    // Cell crossings.
+    std::uint8_t aux = 0;
     for (int k = 0; k < D; ++k) {
       const int c = cell_[i][k];
       const double lo = (c == 0) ? lo_[k] : lo_[k] + c * cw_[k];
       const double hi_face = (c == nc_[k] - 1) ? hi_[k] : lo_[k] + (c + 1) * cw_[k];
       bool up = false;
-      const double dt = slab_exit_time(hi.x[k], hi.v[k], g_[k], lo, hi_face, up);
+      const double dt = slab_exit_time(h.x[k], h.v[k], g_[k], lo, hi_face, up);
       if (dt < best) {
         best = dt;
-        type = kCross;
         aux = static_cast<std::uint8_t>(2 * k + (up ? 1 : 0));
       }
     }
-    // Walls.
-    for (std::size_t w = 0; w < sys_.walls.size(); ++w) {
-      const auto& wall = sys_.walls[w];
-      const double dt = wall_collision_time(hi.x, hi.v, g_, hi.R, wall.point, wall.normal);
-      if (dt < best) {
-        best = dt;
-        type = kWall;
-        partner = static_cast<int>(w);
-      }
-    }
-    // Pairs (Allen-Tildesley), neighbours taken at their stored time and moved virtually.
+    cross_t_[i] = now + best;
+    cross_aux_[i] = aux;
+  }
+
+  // Tests the gathered candidates (cand_) against particle i and keeps the earliest pair event
+  // if it beats the current best (best, type, partner).
+  void test_candidates(int i, double now, double& best, std::uint8_t& type, int& partner) const {
+    const Hot<D>& hi = hot_[i];
     const Vec<D> xi = hi.x, vi = hi.v;
     const double Ri = hi.R;
-    auto test = [&](int j, const Vec<D>& shift) {
-      const Hot<D>& hj = hot_[j];
+    for (const auto& c : cand_) {
+      const Hot<D>& hj = hot_[c.j];
       const double dtj = now - hj.t;
-      Vec<D> r = xi - hj.x - shift - hj.v * dtj;
+      Vec<D> r = xi - hj.x - shift_[c.slot] - hj.v * dtj;
       Vec<D> v = vi - hj.v;
       if (gravity_) {
         r -= (0.5 * dtj * dtj) * g_;
@@ -304,15 +317,59 @@ class EdmEngine {
       if (dt < best) {
         best = dt;
         type = kPair;
-        partner = j;
+        partner = c.j;
       }
-    };
-    for_neighbours(i, test);
+    }
+  }
+
+  void schedule(int i) { queue_.set(i, std::min(ev_t_[i], cross_t_[i])); }
+
+  // Full prediction for particle i, which must be at time `now`: crossing, walls, all pairs.
+  void predict(int i, double now) {
+    predict_crossing(i, now);
+    const Hot<D>& h = hot_[i];
+    double best = kNever;
+    std::uint8_t type = kNone;
+    int partner = -1;
+    for (std::size_t w = 0; w < sys_.walls.size(); ++w) {
+      const auto& wall = sys_.walls[w];
+      const double dt = wall_collision_time(h.x, h.v, g_, h.R, wall.point, wall.normal);
+      if (dt < best) {
+        best = dt;
+        type = kWall;
+        partner = static_cast<int>(w);
+      }
+    }
+    gather(i);
+    test_candidates(i, now, best, type, partner);
+    ev_t_[i] = now + best;
     ev_type_[i] = type;
-    ev_aux_[i] = aux;
     ev_partner_[i] = partner;
     if (type == kPair) ev_pcount_[i] = counter_[partner];
-    queue_.set(i, now + best);
+    schedule(i);
+  }
+
+  // After i crossed into a new cell along `axis` (dir = +1 / -1): new crossing, and pairs with the
+  // layer of cells that came into range, against the stored earliest pair/wall event. The stored
+  // event stays correct: if its partner has since changed course, the event is stale and its pop
+  // triggers a full prediction; any collision of i with a particle that changed course is found
+  // by that particle.
+  void predict_after_crossing(int i, double now, int axis, int dir) {
+    predict_crossing(i, now);
+    const double stored = ev_t_[i] - now;
+    double best = stored;
+    std::uint8_t type = ev_type_[i];
+    int partner = ev_partner_[i];
+    gather(i, axis, dir);
+    test_candidates(i, now, best, type, partner);
+    // Note the new partner may be the stored one with a new time (a stale event with it).
+    if (best < stored) {
+      ev_partner_[i] = partner;
+      ev_type_[i] = type;
+      ev_pcount_[i] = counter_[partner];
+      ev_t_[i] = now + best;
+    }
+    schedule(i);
   }
 
   double restitution(int mi, int mj, double u) const {
@@ -338,6 +395,31 @@ class EdmEngine {
   }
 
   void handle(int i, double t) {
+    if (cross_t_[i] <= ev_t_[i]) {
+      advance(i, t);
+      ++counts_.cell;
+      const int k = cross_aux_[i] / 2;
+      const bool up = cross_aux_[i] & 1;
+      cell_remove(i);
+      int c = cell_[i][k] + (up ? 1 : -1);
+      if (c < 0 || c >= nc_[k]) {
+        if (!sys_.periodic[k]) {
+          cell_insert(i);
+          status_ = "escaped";
+          message_ = fmt::format(
+              "particle {} left the domain through the {} face of axis {} at t = {:.17g} "
+              "(position {:.6g}); add a wall there or make the axis periodic",
+              i, up ? "upper" : "lower", k, t, hot_[i].x[k]);
+          return;
+        }
+        c = up ? 0 : nc_[k] - 1;
+        hot_[i].x[k] += up ? -L_[k] : L_[k];
+      }
+      cell_[i][k] = c;
+      cell_insert(i);
+      predict_after_crossing(i, t, k, up ? 1 : -1);
+      return;
+    }
     switch (ev_type_[i]) {
       case kPair: {
         const int j = ev_partner_[i];
@@ -356,31 +438,6 @@ class EdmEngine {
       case kWall: {
         advance(i, t);
         collide_wall(i, ev_partner_[i]);
-        predict(i, t);
-        return;
-      }
-      case kCross: {
-        advance(i, t);
-        ++counts_.cell;
-        const int k = ev_aux_[i] / 2;
-        const bool up = ev_aux_[i] & 1;
-        cell_remove(i);
-        int c = cell_[i][k] + (up ? 1 : -1);
-        if (c < 0 || c >= nc_[k]) {
-          if (!sys_.periodic[k]) {
-            cell_insert(i);
-            status_ = "escaped";
-            message_ = fmt::format(
-                "particle {} left the domain through the {} face of axis {} at t = {:.17g} "
-                "(position {:.6g}); add a wall there or make the axis periodic",
-                i, up ? "upper" : "lower", k, t, hot_[i].x[k]);
-            return;
-          }
-          c = up ? 0 : nc_[k] - 1;
-          hot_[i].x[k] += up ? -L_[k] : L_[k];
-        }
-        cell_[i][k] = c;
-        cell_insert(i);
         predict(i, t);
         return;
       }
@@ -548,7 +605,8 @@ class EdmEngine {
   std::vector<double> m_;
   std::vector<int> mat_;
   std::vector<std::uint32_t> counter_;
-  std::vector<std::uint8_t> ev_type_, ev_aux_;
+  std::vector<double> ev_t_, cross_t_;
+  std::vector<std::uint8_t> ev_type_, cross_aux_;
   std::vector<int> ev_partner_;
   std::vector<std::uint32_t> ev_pcount_;
   std::vector<double> last_;
@@ -559,6 +617,12 @@ class EdmEngine {
   int ncells_total_ = 0;
   std::vector<int> head_, next_, prev_;
   std::vector<std::array<int, D>> cell_;
+  struct Candidate {
+    int j;
+    int slot;
+  };
+  std::vector<Candidate> cand_;
+  std::array<Vec<D>, 27> shift_;
 
   EventCounts counts_;
   double virial_ = 0.0;

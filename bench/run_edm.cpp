@@ -93,7 +93,7 @@ int one(int n_side, double rho, const std::string& queue, double cpp) {
   set.end_time = t_eq + cpp / omega;
   set.thermo_interval = t_eq;
   Timer timer;
-  const auto res = run_edm<3>(sys, set, queue == "heap" ? QueueKind::Heap : QueueKind::Calendar, {&timer});
+  const auto res = run_edm<3>(std::move(sys), set, queue == "heap" ? QueueKind::Heap : QueueKind::Calendar, {&timer});
   // Samples: t = 0, t_eq, then possibly more every t_eq, and the end.
   const double dt = timer.wall.back() - timer.wall[1];
   const double dc = static_cast<double>(timer.coll.back() - timer.coll[1]);

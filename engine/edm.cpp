@@ -6,6 +6,7 @@
 #include <array>
 #include <chrono>
 #include <cmath>
+#include <optional>
 #include <stdexcept>
 
 #include "contact/hard.hpp"
@@ -34,8 +35,9 @@ struct alignas(D == 3 ? 64 : 16) Hot {
 template <int D, class Queue>
 class EdmEngine {
  public:
-  EdmEngine(const System<D>& sys, const EdmSettings& set, const std::vector<Observer<D>*>& obs)
-      : sys_(sys), set_(set), N_(static_cast<int>(sys.size())), queue_(sys.size() + 2) {
+  EdmEngine(System<D>&& system, const EdmSettings& set, const std::vector<Observer<D>*>& obs)
+      : sys_(std::move(system)), set_(set), N_(static_cast<int>(sys_.size())) {
+    const System<D>& sys = sys_;
     for (auto* o : obs) {
       if (!o) continue;
       observers_.push_back(o);
@@ -49,8 +51,24 @@ class EdmEngine {
     window_ = set.collapse_window > 0.0 ? set.collapse_window : 1e-9 * set.end_time;
 
     hot_.resize(N_);
-    m_.resize(N_);
     mat_.resize(N_);
+    double rmax = 0.0;
+    for (int i = 0; i < N_; ++i) {
+      hot_[i].x = sys.x[i];
+      hot_[i].v = sys.v[i];
+      hot_[i].t = 0.0;
+      hot_[i].R = sys.radius[i];
+      mat_[i] = sys.material[i];
+      rmax = std::max(rmax, sys.radius[i]);
+    }
+    // m = density * ball volume (System::mass), as a per-material factor times R^D.
+    for (const auto& mat : sys_.materials) mass_factor_.push_back(mat.density * ball_volume<D>(1.0));
+    // The engine's own arrays hold the particle state from here on.
+    release(sys_.x);
+    release(sys_.v);
+    release(sys_.radius);
+    release(sys_.material);
+    // Scheduling state, allocated after the input arrays are gone (peak memory).
     counter_.assign(N_, 0);
     ev_t_.assign(N_, kNever);
     ev_type_.assign(N_, kNone);
@@ -60,20 +78,21 @@ class EdmEngine {
     ev_pcount_.assign(N_, 0);
     last_.assign(N_, -kNever);
     rapid_.assign(N_, 0);
-    double rmax = 0.0;
-    for (int i = 0; i < N_; ++i) {
-      hot_[i].x = sys.x[i];
-      hot_[i].v = sys.v[i];
-      hot_[i].t = 0.0;
-      hot_[i].R = sys.radius[i];
-      m_[i] = sys.mass(i);
-      mat_[i] = sys.material[i];
-      rmax = std::max(rmax, sys.radius[i]);
-    }
+    queue_.emplace(static_cast<std::size_t>(N_) + 2);
     all_elastic_ = true;
     for (const auto& mat : sys.materials) all_elastic_ = all_elastic_ && mat.restitution.is_elastic();
     build_cells(2.0 * rmax);
     cand_.reserve(256);
+  }
+
+  template <class T>
+  static void release(std::vector<T>& v) {
+    std::vector<T>().swap(v);
+  }
+
+  double mass(int i) const {
+    const double R = hot_[i].R;
+    return D == 3 ? mass_factor_[mat_[i]] * R * R * R : mass_factor_[mat_[i]] * R * R;
   }
 
   RunResult<D> run() {
@@ -83,16 +102,16 @@ class EdmEngine {
     emit_sample(0.0, /*interval=*/0.0);
     for (int i = 0; i < N_; ++i) predict(i, 0.0);
     if (set_.thermo_interval > 0.0 && set_.thermo_interval < set_.end_time * (1.0 - 1e-12))
-      queue_.set(sample_id, set_.thermo_interval);
-    queue_.set(end_id, set_.end_time);
+      queue_->set(sample_id, set_.thermo_interval);
+    queue_->set(end_id, set_.end_time);
     std::uint64_t sample_k = 1;
     double last_sample_time = 0.0;
 
     RunResult<D> res;
     std::uint64_t processed = 0;
-    while (!queue_.empty()) {
-      const auto [id, t] = queue_.top();
-      queue_.pop();
+    while (!queue_->empty()) {
+      const auto [id, t] = queue_->top();
+      queue_->pop();
       now_ = t;
       if (id == end_id) break;
       if (id == sample_id) {
@@ -101,10 +120,10 @@ class EdmEngine {
         ++sample_k;
         const double next = static_cast<double>(sample_k) * set_.thermo_interval;
         // The end of the run writes its own row; skip a sample that would fall on it.
-        if (next < set_.end_time * (1.0 - 1e-12)) queue_.set(sample_id, next);
+        if (next < set_.end_time * (1.0 - 1e-12)) queue_->set(sample_id, next);
         continue;
       }
-      if (++processed >= set_.max_events) {
+      if (processed++ >= set_.max_events) {
         status_ = "max_events";
         message_ = fmt::format("stopped after run.max_events = {} events at t = {:.17g}",
                                set_.max_events, t);
@@ -125,14 +144,29 @@ class EdmEngine {
     res.time = t_end;
     res.counts = counts_;
     measure_overlaps(res);
+    // Free the scheduling state before the result's arrays are allocated (peak memory).
+    queue_.reset();
+    release(head_);
+    release(next_);
+    release(cell_);
+    release(counter_);
+    release(ev_t_);
+    release(cross_t_);
+    release(ev_type_);
+    release(cross_aux_);
+    release(ev_partner_);
+    release(ev_pcount_);
+    release(last_);
+    release(rapid_);
     res.x.resize(N_);
     res.v.resize(N_);
+    res.radius.resize(N_);
     for (int i = 0; i < N_; ++i) {
       res.x[i] = hot_[i].x;
       res.v[i] = hot_[i].v;
+      res.radius[i] = hot_[i].R;
     }
-    res.w = sys_.w;
-    if (res.w.size() != static_cast<std::size_t>(N_)) res.w.assign(N_, Spin<D>::Zero());
+    res.w = std::move(sys_.w);
     res.wall_seconds =
         std::chrono::duration<double>(std::chrono::steady_clock::now() - wall0).count();
     return res;
@@ -173,7 +207,6 @@ class EdmEngine {
     ncells_total_ = stride_[D - 1] * nc_[D - 1];
     head_.assign(ncells_total_, -1);
     next_.assign(N_, -1);
-    prev_.assign(N_, -1);
     cell_.resize(N_);
     for (int i = 0; i < N_; ++i) {
       for (int k = 0; k < D; ++k) {
@@ -190,17 +223,14 @@ class EdmEngine {
   }
   void cell_insert(int i) {
     const int l = linear(cell_[i]);
-    prev_[i] = -1;
     next_[i] = head_[l];
-    if (head_[l] >= 0) prev_[head_[l]] = i;
     head_[l] = i;
   }
   void cell_remove(int i) {
-    if (prev_[i] >= 0)
-      next_[prev_[i]] = next_[i];
-    else
-      head_[linear(cell_[i])] = next_[i];
-    if (next_[i] >= 0) prev_[next_[i]] = prev_[i];
+    // Cells hold a particle or two: walking the list is cheaper than a back link per particle.
+    int* link = &head_[linear(cell_[i])];
+    while (*link != i) link = &next_[*link];
+    *link = next_[i];
   }
 
   // Collects the particles j != i of the cells around i's cell into cand_, each with the slot of
@@ -322,7 +352,7 @@ class EdmEngine {
     }
   }
 
-  void schedule(int i) { queue_.set(i, std::min(ev_t_[i], cross_t_[i])); }
+  void schedule(int i) { queue_->set(i, std::min(ev_t_[i], cross_t_[i])); }
 
   // Full prediction for particle i, which must be at time `now`: crossing, walls, all pairs.
   void predict(int i, double now) {
@@ -469,7 +499,7 @@ class EdmEngine {
       rec.vi_before = a.v;
       rec.vj_before = b.v;
     }
-    const double J = smooth_pair_collision(a.v, b.v, m_[i], m_[j], n, e);
+    const double J = smooth_pair_collision(a.v, b.v, mass(i), mass(j), n, e);
     virial_ += J * dist;  // r_ij . dp_i with dp_i = J n
     ++counter_[i];
     ++counter_[j];
@@ -481,8 +511,8 @@ class EdmEngine {
       rec.kind = EventKind::PairCollision;
       rec.i = static_cast<std::uint32_t>(i);
       rec.j = static_cast<std::uint32_t>(j);
-      rec.mi = m_[i];
-      rec.mj = m_[j];
+      rec.mi = mass(i);
+      rec.mj = mass(j);
       rec.e = e;
       rec.normal = n;
       rec.vi_after = a.v;
@@ -508,7 +538,7 @@ class EdmEngine {
     CollisionRecord<D> rec;
     const bool log = !collision_observers_.empty();
     if (log) rec.vi_before = a.v;
-    smooth_wall_collision(a.v, m_[i], wall.normal, e);
+    smooth_wall_collision(a.v, mass(i), wall.normal, e);
     ++counter_[i];
     ++counts_.wall;
     note_collision(i);
@@ -517,7 +547,7 @@ class EdmEngine {
       rec.kind = EventKind::WallCollision;
       rec.i = static_cast<std::uint32_t>(i);
       rec.j = static_cast<std::uint32_t>(w);
-      rec.mi = m_[i];
+      rec.mi = mass(i);
       rec.e = e;
       rec.normal = wall.normal;
       rec.vi_after = a.v;
@@ -549,12 +579,12 @@ class EdmEngine {
         x += h.v * dt + (0.5 * dt * dt) * g_;
         v += g_ * dt;
       }
-      mv2 += m_[i] * v.squaredNorm();
-      if (gravity_) pe -= m_[i] * g_.dot(x);
+      mv2 += mass(i) * v.squaredNorm();
+      if (gravity_) pe -= mass(i) * g_.dot(x);
     }
     if (!sys_.w.empty())
       for (int i = 0; i < N_; ++i)
-        rot += 0.5 * inertia_factor<D>() * m_[i] * hot_[i].R * hot_[i].R * sys_.w[i].squaredNorm();
+        rot += 0.5 * inertia_factor<D>() * mass(i) * hot_[i].R * hot_[i].R * sys_.w[i].squaredNorm();
     s.kinetic_energy = 0.5 * mv2;
     s.rotational_energy = rot;
     s.potential_energy = pe;
@@ -591,10 +621,10 @@ class EdmEngine {
     res.max_overlap_relative = worst_rel;
   }
 
-  const System<D>& sys_;
+  System<D> sys_;  // materials, walls, geometry (particle arrays released)
   EdmSettings set_;
   int N_;
-  Queue queue_;
+  std::optional<Queue> queue_;  // built once the input arrays are released
   std::vector<Observer<D>*> observers_, collision_observers_;
   Vec<D> g_, lo_, hi_, L_;
   bool gravity_ = false, all_elastic_ = false;
@@ -602,7 +632,7 @@ class EdmEngine {
   double now_ = 0.0;
 
   std::vector<Hot<D>> hot_;
-  std::vector<double> m_;
+  std::vector<double> mass_factor_;  // per material: density * ball_volume(1)
   std::vector<int> mat_;
   std::vector<std::uint32_t> counter_;
   std::vector<double> ev_t_, cross_t_;
@@ -615,7 +645,7 @@ class EdmEngine {
   std::array<int, D> nc_{}, stride_{};
   Vec<D> cw_;
   int ncells_total_ = 0;
-  std::vector<int> head_, next_, prev_;
+  std::vector<int> head_, next_;
   std::vector<std::array<int, D>> cell_;
   struct Candidate {
     int j;
@@ -633,15 +663,13 @@ class EdmEngine {
 }  // namespace
 
 template <int D>
-RunResult<D> run_edm(const System<D>& system, const EdmSettings& settings, QueueKind queue,
+RunResult<D> run_edm(System<D> system, const EdmSettings& settings, QueueKind queue,
                      const std::vector<Observer<D>*>& observers) {
-  if (queue == QueueKind::Heap) return EdmEngine<D, HeapQueue>(system, settings, observers).run();
-  return EdmEngine<D, CalendarQueue>(system, settings, observers).run();
+  if (queue == QueueKind::Heap) return EdmEngine<D, HeapQueue>(std::move(system), settings, observers).run();
+  return EdmEngine<D, CalendarQueue>(std::move(system), settings, observers).run();
 }
 
-template RunResult<2> run_edm<2>(const System<2>&, const EdmSettings&, QueueKind,
-                                 const std::vector<Observer<2>*>&);
-template RunResult<3> run_edm<3>(const System<3>&, const EdmSettings&, QueueKind,
-                                 const std::vector<Observer<3>*>&);
+template RunResult<2> run_edm<2>(System<2>, const EdmSettings&, QueueKind, const std::vector<Observer<2>*>&);
+template RunResult<3> run_edm<3>(System<3>, const EdmSettings&, QueueKind, const std::vector<Observer<3>*>&);
 
 }  // namespace matep

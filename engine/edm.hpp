@@ -38,14 +38,16 @@ struct RunResult {
   double max_overlap = 0.0;           // largest pair or wall overlap at the end (length)
   double max_overlap_relative = 0.0;  // the same divided by the pair's contact distance
   std::vector<Vec<D>> x, v;           // final state
-  std::vector<Spin<D>> w;
+  std::vector<double> radius;
+  std::vector<Spin<D>> w;             // empty when the system had no spins (all zero)
 };
 
-// Runs the system from t = 0 to settings.end_time (or until it stops early).
+// Runs the system from t = 0 to settings.end_time (or until it stops early). The system is taken
+// by value: move it in to let the engine release its particle arrays once copied (memory).
 // Throws std::invalid_argument for systems the engine cannot represent (e.g. a periodic axis
 // shorter than three largest diameters).
 template <int D>
-RunResult<D> run_edm(const System<D>& system, const EdmSettings& settings, QueueKind queue,
+RunResult<D> run_edm(System<D> system, const EdmSettings& settings, QueueKind queue,
                      const std::vector<Observer<D>*>& observers = {});
 
 }  // namespace matep

@@ -232,8 +232,8 @@ void ThermoCsvWriter::on_sample(const ThermoSample& s) {
 // ---- final_state.csv --------------------------------------------------------------------------
 
 template <int D>
-void write_final_state(const std::string& path, const RunResult<D>& res,
-                       const std::vector<double>& radius) {
+void write_final_state(const std::string& path, const RunResult<D>& res) {
+  const auto& radius = res.radius;
   std::FILE* f = open_or_throw(path, "w");
   if constexpr (D == 3)
     std::fputs("id,x,y,z,vx,vy,vz,wx,wy,wz,radius\n", f);
@@ -242,7 +242,7 @@ void write_final_state(const std::string& path, const RunResult<D>& res,
   for (std::size_t i = 0; i < res.x.size(); ++i) {
     const auto& x = res.x[i];
     const auto& v = res.v[i];
-    const auto& w = res.w[i];
+    const Spin<D> w = res.w.empty() ? Spin<D>::Zero() : res.w[i];
     if constexpr (D == 3)
       fmt::print(f, "{},{:.17g},{:.17g},{:.17g},{:.17g},{:.17g},{:.17g},{:.17g},{:.17g},{:.17g},{:.17g}\n",
                  i, x[0], x[1], x[2], v[0], v[1], v[2], w[0], w[1], w[2], radius[i]);
@@ -253,8 +253,8 @@ void write_final_state(const std::string& path, const RunResult<D>& res,
   std::fclose(f);
 }
 
-template void write_final_state<2>(const std::string&, const RunResult<2>&, const std::vector<double>&);
-template void write_final_state<3>(const std::string&, const RunResult<3>&, const std::vector<double>&);
+template void write_final_state<2>(const std::string&, const RunResult<2>&);
+template void write_final_state<3>(const std::string&, const RunResult<3>&);
 
 // ---- summary.json -----------------------------------------------------------------------------
 

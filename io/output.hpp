@@ -93,8 +93,7 @@ class ThermoCsvWriter final : public Observer<2>, public Observer<3> {
 };
 
 template <int D>
-void write_final_state(const std::string& path, const RunResult<D>& result,
-                       const std::vector<double>& radius);
+void write_final_state(const std::string& path, const RunResult<D>& result);
 
 struct SummaryInfo {
   std::string scene;

@@ -61,7 +61,7 @@ RunOutcome run_system(const Scene& scene, const System<D>& sys, const std::strin
   const QueueKind q = scene.queue == "heap" ? QueueKind::Heap : QueueKind::Calendar;
   RunResult<D> res = run_edm<D>(sys, settings, q, observers);
   if (log) log->close();
-  write_final_state<D>(dir + "/final_state.csv", res, sys.radius);
+  write_final_state<D>(dir + "/final_state.csv", res);
   SummaryInfo info;
   info.scene = scene.path;
   info.method = scene.method;

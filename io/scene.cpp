@@ -1,0 +1,606 @@
+// Scene files -> validated Scene. See io/scene.hpp and README.md for the schema.
+#include "io/scene.hpp"
+
+#include <algorithm>
+#include <cerrno>
+#include <cmath>
+#include <cstring>
+#include <filesystem>
+#include <fstream>
+#include <limits>
+#include <map>
+#include <sstream>
+
+#include <fmt/format.h>
+
+#include "io/placement.hpp"
+#include "io/scene_csv.hpp"
+#include "io/scene_toml.hpp"
+
+namespace matep {
+
+namespace {
+
+using namespace scene_detail;
+namespace fs = std::filesystem;
+
+template <int D>
+std::string vec_str(const Vec<D>& v) {
+  std::string s = "(";
+  for (int k = 0; k < D; ++k) s += fmt::format("{}{}", k ? ", " : "", v[k]);
+  return s + ")";
+}
+
+template <int D>
+Vec<D> to_vec(const std::vector<double>& a) {
+  Vec<D> v;
+  for (int k = 0; k < D; ++k) v[k] = a[static_cast<std::size_t>(k)];
+  return v;
+}
+
+constexpr const char* kAxis[] = {"x", "y", "z"};
+
+// The [NAME] sub-tables of a top-level table such as [material], in file order.
+std::vector<std::pair<std::string, TableReader>> named_tables(const TableReader& top, std::string_view k) {
+  std::vector<std::pair<std::string, TableReader>> out;
+  if (!top.has(k)) return out;
+  const TableReader parent = top.sub(k);
+  std::vector<std::pair<std::string, const toml::node*>> items;
+  for (const auto& [name, node] : parent.table()) items.emplace_back(std::string(name.str()), &node);
+  std::stable_sort(items.begin(), items.end(), [](const auto& a, const auto& b) {
+    return source_order(*a.second) < source_order(*b.second);
+  });
+  for (const auto& [name, node] : items) {
+    if (!node->is_table()) {
+      parent.fail(name,
+                  fmt::format("expected a table ([{}.{}]) but found {}", k, name, type_name(*node)), *node);
+    }
+    out.emplace_back(name, TableReader(top.file(), *node->as_table(), parent.key(name)));
+  }
+  return out;
+}
+
+// -------------------------------------------------------------------------------- materials
+
+Restitution read_restitution(const TableReader& m) {
+  const toml::node* n = m.find("restitution");
+  if (n == nullptr) return Restitution::constant(1.0);
+  if (n->is_number()) return Restitution::constant(m.as_number(*n, "restitution", kUnit));
+  if (!n->is_table()) {
+    m.fail("restitution",
+           fmt::format("expected a number in [0, 1] or a table {{model = ...}} but found {}", type_name(*n)), *n);
+  }
+  const TableReader t = m.sub("restitution");
+  const std::string model = t.string("model", {"constant", "power", "schwager", "exponential"});
+  Restitution r;
+  if (model == "constant") {
+    t.allow({"model", "e"});
+    r = Restitution::constant(t.number("e", kUnit));
+  } else if (model == "power") {
+    t.allow({"model", "B", "b"});
+    r.model = Restitution::Model::Power;
+    r.B = t.number("B", kPositive);
+    r.b = t.number("b", kNonNegative);
+  } else if (model == "schwager") {
+    t.allow({"model", "e0", "u0", "n"});
+    r.model = Restitution::Model::Schwager;
+    r.e0 = t.number("e0", kUnit);
+    r.u0 = t.number("u0", kPositive);
+    r.n = t.number_or("n", 0.2, kPositive);
+  } else {
+    t.allow({"model", "C", "a"});
+    r.model = Restitution::Model::Exponential;
+    r.C = t.number("C", Range{0.0, 1.0, true, false});
+    r.a = t.number("a", kNonNegative);
+  }
+  return r;
+}
+
+Material read_material(const std::string& name, const TableReader& m) {
+  m.allow({"density", "restitution", "young", "poisson", "friction", "contact", "stiffness", "dissipation",
+           "tangential_restitution"});
+  Material mat;
+  mat.name = name;
+  mat.density = m.number("density", kPositive);
+  mat.restitution = read_restitution(m);
+  mat.young = m.number_opt("young", kPositive);
+  mat.poisson = m.number_opt("poisson", Range{-1.0, 0.5, true, false});
+  mat.friction = m.number_opt("friction", kNonNegative);
+  mat.contact = m.string_opt("contact", {"linear", "hertz", "viscoelastic"}).value_or("");
+  mat.stiffness = m.number_opt("stiffness", kPositive);
+  mat.dissipation = m.number_opt("dissipation", kNonNegative);
+  mat.tangential_restitution = m.number_opt("tangential_restitution", Range{-1.0, 1.0});
+  return mat;
+}
+
+int material_index(const TableReader& t, const std::vector<Material>& materials) {
+  const std::string name = t.string("material");
+  for (std::size_t i = 0; i < materials.size(); ++i) {
+    if (materials[i].name == name) return static_cast<int>(i);
+  }
+  std::string known;
+  for (const auto& m : materials) known += (known.empty() ? "" : ", ") + m.name;
+  t.fail("material",
+         known.empty() ? std::string("no such material: the scene defines no [material.NAME] tables")
+                       : fmt::format("no such material (defined: {})", known),
+         t.need("material"));
+}
+
+// -------------------------------------------------------------------------------- particles
+
+template <int D>
+struct Group {
+  Group(std::string n, TableReader t) : name(std::move(n)), table(std::move(t)) {}
+  std::string name;
+  TableReader table;
+  int material = 0;
+  bool from_file = false;
+  std::string file_value;   // as written in the scene
+  std::string file_path;    // resolved
+  // Generated groups.
+  double rmin = 0.0, rmax = 0.0;
+  std::uint64_t count = 0;
+  bool lattice = false;
+  Vec<D> region_lower = Vec<D>::Zero(), region_upper = Vec<D>::Zero();
+  bool region_given = false;
+  std::optional<double> temperature;
+  Vec<D> velocity = Vec<D>::Zero();
+  // Particles.
+  std::vector<Vec<D>> x, v;
+  std::vector<Spin<D>> w;
+  std::vector<double> r;
+  std::vector<std::size_t> line;  // file groups: CSV line of each particle
+};
+
+template <int D>
+struct Builder {
+  const std::string& file;
+  fs::path base_dir;
+  System<D>& sys;
+  std::vector<Group<D>> groups;
+  std::vector<std::pair<std::size_t, std::size_t>> owner;  // grid tag -> (group, index)
+
+  std::string who(std::size_t g, std::size_t i) const {
+    std::string s = fmt::format("particles.{}[{}]", groups[g].name, i);
+    if (groups[g].from_file && i < groups[g].line.size()) {
+      s += fmt::format(" ({} line {})", groups[g].file_value, groups[g].line[i]);
+    }
+    return s;
+  }
+
+  void read_group(const std::string& name, const TableReader& t) {
+    t.allow({"material", "file", "radius", "count", "arrangement", "region", "temperature", "velocity"});
+    Group<D> g(name, t);
+    g.material = material_index(t, sys.materials);
+    if (t.has("file")) {
+      for (const char* k : {"radius", "count", "arrangement", "region", "temperature", "velocity"}) {
+        if (t.has(k)) t.fail(k, "cannot be combined with file (the file gives every particle)", t.need(k));
+      }
+      g.from_file = true;
+      g.file_value = t.string("file");
+      fs::path p(g.file_value);
+      if (p.is_relative()) p = base_dir / p;
+      g.file_path = p.lexically_normal().string();
+      read_file(g);
+    } else {
+      read_generated(g, t);
+    }
+    groups.push_back(std::move(g));
+  }
+
+  void read_file(Group<D>& g) {
+    const TableReader& t = g.table;
+    CsvTable csv;
+    try {
+      csv = read_csv(g.file_path);
+    } catch (const CsvError& e) {
+      fail_got(file, t.key("file"), fmt::format("{}: {}", g.file_path, e.what()), quote(g.file_value));
+    }
+    const auto bad = [&](std::string_view problem) {
+      fail_got(file, t.key("file"), fmt::format("{}: {}", g.file_path, problem), quote(g.file_value));
+    };
+    std::vector<std::string> required, optional;
+    for (int k = 0; k < D; ++k) required.emplace_back(kAxis[k]);
+    for (int k = 0; k < D; ++k) required.push_back(fmt::format("v{}", kAxis[k]));
+    required.emplace_back("radius");
+    if (D == 2) {
+      optional = {"w"};
+    } else {
+      optional = {"wx", "wy", "wz"};
+    }
+    std::map<std::string, std::size_t> col;
+    for (std::size_t c = 0; c < csv.columns.size(); ++c) {
+      const std::string& name = csv.columns[c];
+      const bool known = std::find(required.begin(), required.end(), name) != required.end() ||
+                         std::find(optional.begin(), optional.end(), name) != optional.end();
+      if (!known) {
+        std::string allowed;
+        for (const auto& a : required) allowed += (allowed.empty() ? "" : ",") + a;
+        for (const auto& a : optional) allowed += "," + a;
+        bad(fmt::format("unknown column '{}' (columns of a {}D particle file: {})", name, D, allowed));
+      }
+      col[name] = c;
+    }
+    for (const auto& name : required) {
+      if (!col.count(name)) bad(fmt::format("missing column '{}'", name));
+    }
+    if (csv.rows.empty()) bad("no particles (the file has a header but no rows)");
+    const std::size_t n = csv.rows.size();
+    g.x.resize(n);
+    g.v.resize(n);
+    g.w.assign(n, Spin<D>::Zero());
+    g.r.resize(n);
+    g.line = csv.lines;
+    for (std::size_t i = 0; i < n; ++i) {
+      const auto& row = csv.rows[i];
+      for (int k = 0; k < D; ++k) {
+        g.x[i][k] = row[col.at(kAxis[k])];
+        g.v[i][k] = row[col.at(fmt::format("v{}", kAxis[k]))];
+      }
+      for (std::size_t s = 0; s < optional.size(); ++s) {
+        const auto it = col.find(optional[s]);
+        if (it != col.end()) g.w[i][static_cast<Eigen::Index>(s)] = row[it->second];
+      }
+      g.r[i] = row[col.at("radius")];
+      if (!(g.r[i] > 0.0)) {
+        fail_got(file, t.key("file"),
+                 fmt::format("particles.{}[{}] ({} line {}) has radius {} (must be > 0)", g.name, i, g.file_value,
+                             csv.lines[i], g.r[i]),
+                 quote(g.file_value));
+      }
+      for (int k = 0; k < D; ++k) {
+        const double lo = sys.lower[k], hi = sys.upper[k], xk = g.x[i][k];
+        const double slack = 1e-12 * g.r[i];
+        const bool inside = sys.periodic[k] ? (xk >= lo && xk <= hi)
+                                            : (xk - g.r[i] >= lo - slack && xk + g.r[i] <= hi + slack);
+        if (!inside) {
+          fail_got(file, t.key("file"),
+                   fmt::format("particles.{}[{}] ({} line {}) at {} with radius {} is outside the domain along {} "
+                               "(domain [{}, {}]{})",
+                               g.name, i, g.file_value, csv.lines[i], vec_str<D>(g.x[i]), g.r[i], kAxis[k], lo, hi,
+                               sys.periodic[k] ? ", periodic: the centre must lie inside"
+                                               : ": the particle must lie entirely inside"),
+                   quote(g.file_value));
+        }
+      }
+    }
+  }
+
+  void read_generated(Group<D>& g, const TableReader& t) {
+    // radius = r or [rmin, rmax]
+    const toml::node& rn = t.need("radius");
+    if (rn.is_number()) {
+      g.rmin = g.rmax = t.as_number(rn, "radius", kPositive);
+    } else if (const toml::array* a = rn.as_array()) {
+      if (a->size() != 2) t.fail("radius", fmt::format("expected [rmin, rmax] but the array has {} elements", a->size()), rn);
+      const auto rr = t.numbers("radius", 2);
+      if (!(rr[0] > 0.0)) t.fail("radius", "rmin must be > 0", rn);
+      if (!(rr[1] >= rr[0])) t.fail("radius", "rmax must be >= rmin", rn);
+      g.rmin = rr[0];
+      g.rmax = rr[1];
+    } else {
+      t.fail("radius", fmt::format("expected a number or [rmin, rmax] but found {}", type_name(rn)), rn);
+    }
+    g.count = static_cast<std::uint64_t>(t.integer("count", Range{1.0}));
+    g.lattice = t.string_opt("arrangement", {"random", "lattice"}).value_or("random") == "lattice";
+    g.region_lower = sys.lower;
+    g.region_upper = sys.upper;
+    if (t.has("region")) {
+      g.region_given = true;
+      const TableReader reg = t.sub("region");
+      reg.allow({"lower", "upper"});
+      g.region_lower = to_vec<D>(reg.numbers("lower", D));
+      g.region_upper = to_vec<D>(reg.numbers("upper", D));
+      for (int k = 0; k < D; ++k) {
+        if (!(g.region_upper[k] > g.region_lower[k])) {
+          reg.fail("upper", fmt::format("must exceed region.lower along {} ({} <= {})", kAxis[k],
+                                        g.region_upper[k], g.region_lower[k]),
+                   reg.need("upper"));
+        }
+        if (g.region_lower[k] < sys.lower[k]) {
+          reg.fail("lower", fmt::format("lies outside the domain along {} (domain.lower = {})", kAxis[k], sys.lower[k]),
+                   reg.need("lower"));
+        }
+        if (g.region_upper[k] > sys.upper[k]) {
+          reg.fail("upper", fmt::format("lies outside the domain along {} (domain.upper = {})", kAxis[k], sys.upper[k]),
+                   reg.need("upper"));
+        }
+      }
+    }
+    for (int k = 0; k < D; ++k) {
+      const double L = g.region_upper[k] - g.region_lower[k];
+      if (!sys.periodic[k] && L < 2.0 * g.rmax) {
+        t.fail(g.region_given ? "region" : "radius",
+               fmt::format("the {} is {} wide along {}, less than the largest particle diameter {}",
+                           g.region_given ? "region" : "domain", L, kAxis[k], 2.0 * g.rmax),
+               t.need(g.region_given ? "region" : "radius"));
+      }
+    }
+    if (t.has("temperature") && t.has("velocity")) {
+      t.fail("velocity", "cannot be combined with temperature (give one of them)", t.need("velocity"));
+    }
+    g.temperature = t.number_opt("temperature", kNonNegative);
+    if (t.has("velocity")) g.velocity = to_vec<D>(t.numbers("velocity", D));
+  }
+
+  void check_and_insert(placement::OverlapGrid<D>& grid, std::size_t gi, std::size_t i) {
+    const Group<D>& g = groups[gi];
+    const TableReader& t = g.table;
+    const Vec<D>& x = g.x[i];
+    const double r = g.r[i];
+    const std::string key = t.key(g.from_file ? "file" : "arrangement");
+    const std::string got = g.from_file ? quote(g.file_value) : quote(g.lattice ? "lattice" : "random");
+    if (const auto w = placement::wall_overlap<D>(sys.walls, x, r, 1e-12)) {
+      fail_got(file, key,
+               fmt::format("{} at {} with radius {} overlaps wall.{} by {:.6g} (signed distance {:.6g} < radius)",
+                           who(gi, i), vec_str<D>(x), r, sys.walls[w->first].name, r - w->second, w->second),
+               got);
+    }
+    if (const auto hit = grid.first_overlap(x, r, 1e-12)) {
+      const auto [og, oi] = owner[hit->tag];
+      fail_got(file, key,
+               fmt::format("{} at {} with radius {} overlaps {} at {} with radius {} by {:.6g}", who(gi, i),
+                           vec_str<D>(x), r, who(og, oi), vec_str<D>(hit->x), hit->r, r + hit->r - hit->distance),
+               got);
+    }
+    grid.insert(x, r, owner.size());
+    owner.emplace_back(gi, i);
+  }
+
+  std::vector<double> masses(const Group<D>& g) const {
+    std::vector<double> m(g.r.size());
+    for (std::size_t i = 0; i < m.size(); ++i) m[i] = sys.materials[g.material].density * ball_volume<D>(g.r[i]);
+    return m;
+  }
+
+  void generate(placement::OverlapGrid<D>& grid, std::size_t gi, std::uint64_t seed) {
+    Group<D>& g = groups[gi];
+    const TableReader& t = g.table;
+    const toml::node& count_node = t.need("count");
+    const std::string rdesc = g.rmax > g.rmin ? fmt::format("radius in [{}, {}]", g.rmin, g.rmax)
+                                              : fmt::format("radius {}", g.rmin);
+    double vol = 1.0;
+    for (int k = 0; k < D; ++k) vol *= g.region_upper[k] - g.region_lower[k];
+    const double close_packing =
+        D == 2 ? std::numbers::pi / std::sqrt(12.0) : std::numbers::pi / std::sqrt(18.0);
+    // Hopeless requests fail at once, before anything is allocated: even the smallest radii
+    // would fill more of the region than the densest packing of equal spheres.
+    const auto too_full = [&](double fill) {
+      t.fail("count",
+             fmt::format("could not place {} particles of {} in the region: they would fill {:.3g}% of its "
+                         "volume, more than the densest packing ({:.3g}%); lower the count or the radius",
+                         g.count, rdesc, 100.0 * fill, 100.0 * close_packing),
+             count_node);
+    };
+    if (static_cast<double>(g.count) * ball_volume<D>(g.rmin) / vol > close_packing) {
+      too_full(static_cast<double>(g.count) * ball_volume<D>(g.rmin) / vol);
+    }
+    placement::Rng rng(seed, gi);
+    g.r.resize(g.count);
+    for (auto& r : g.r) r = (g.rmax > g.rmin) ? rng.uniform(g.rmin, g.rmax) : g.rmin;
+    double fill = 0.0;
+    for (const double r : g.r) fill += ball_volume<D>(r);
+    fill /= vol;
+    if (fill > close_packing) too_full(fill);
+    if (g.lattice) {
+      const auto lat = placement::lattice_for<D>(g.region_lower, g.region_upper, g.count);
+      if (lat.spacing < 2.0 * g.rmax * (1.0 - 1e-12)) {
+        t.fail("count",
+               fmt::format("a lattice of {} particles with {} does not fit in the region: the largest spacing "
+                           "giving {} sites is {:.6g}, less than the diameter {}; lower the count or the radius",
+                           g.count, rdesc, g.count, lat.spacing, 2.0 * g.rmax),
+               count_node);
+      }
+      g.x.resize(g.count);
+      for (std::uint64_t i = 0; i < g.count; ++i) {
+        g.x[i] = lat.site(g.region_lower, g.region_upper, i);
+        check_and_insert(grid, gi, i);
+      }
+    } else {
+      // Random sequential placement of equal spheres jams at a known packing fraction (Feder 1980;
+      // Torquato, Uche & Stillinger 2006); large monodisperse requests above it fail at once.
+      const double jamming = D == 2 ? 0.547 : 0.3841;
+      if (g.rmin == g.rmax && g.count >= 500 && fill > jamming) {
+        t.fail("count",
+               fmt::format("could not place {} particles of {} in the region: they would fill {:.3g}% of its "
+                           "volume, more than random placement can reach (about {:.3g}%); lower the count or "
+                           "use arrangement = \"lattice\"",
+                           g.count, rdesc, 100.0 * fill, 100.0 * jamming),
+               count_node);
+      }
+      const std::uint64_t cap = std::numeric_limits<std::uint64_t>::max() / 400;
+      const std::uint64_t max_attempts = 200 * std::min(g.count, cap) + 10000;
+      const std::size_t first_tag = owner.size();
+      for (std::size_t i = 0; i < g.count; ++i) owner.emplace_back(gi, i);
+      const auto res = placement::place_random<D>(grid, sys.walls, g.region_lower, g.region_upper, sys.periodic,
+                                                  g.r, first_tag, max_attempts, rng, g.x);
+      if (res.placed < g.count) {
+        t.fail("count",
+               fmt::format("could not place {} particles of {} in the region (placed {} after {} attempts{}; "
+                           "they would fill {:.3g}% of its volume); lower the count or use "
+                           "arrangement = \"lattice\"",
+                           g.count, rdesc, res.placed, res.attempts,
+                           res.gave_up_early
+                               ? fmt::format(", stopped early: at the current success rate the rest would need "
+                                             "more than the limit of {} attempts",
+                                             max_attempts)
+                               : std::string(),
+                           100.0 * fill),
+               count_node);
+      }
+    }
+    // Velocities.
+    if (g.temperature) {
+      placement::thermal_velocities<D>(masses(g), *g.temperature, rng, g.v);
+    } else {
+      g.v.assign(g.count, g.velocity);
+    }
+    g.w.assign(g.count, Spin<D>::Zero());
+  }
+};
+
+template <int D>
+void build_system(const TableReader& top, const TableReader& run, const fs::path& base_dir, Scene& scene) {
+  System<D>& sys = scene.system.template emplace<System<D>>();
+  const std::string& file = scene.path;
+
+  // [run] gravity.
+  if (run.has("gravity")) sys.gravity = to_vec<D>(run.numbers("gravity", D));
+
+  // [domain]
+  const TableReader dom = top.sub("domain");
+  dom.allow({"lower", "upper", "periodic"});
+  sys.lower = to_vec<D>(dom.numbers("lower", D));
+  sys.upper = to_vec<D>(dom.numbers("upper", D));
+  for (int k = 0; k < D; ++k) {
+    if (!(sys.upper[k] > sys.lower[k])) {
+      dom.fail("upper",
+               fmt::format("must exceed domain.lower along {} ({} <= {})", kAxis[k], sys.upper[k], sys.lower[k]),
+               dom.need("upper"));
+    }
+  }
+  if (dom.has("periodic")) {
+    const auto p = dom.booleans("periodic", D);
+    for (int k = 0; k < D; ++k) sys.periodic[k] = p[static_cast<std::size_t>(k)];
+  }
+
+  // [material.NAME]
+  for (const auto& [name, t] : named_tables(top, "material")) sys.materials.push_back(read_material(name, t));
+
+  // [wall.NAME]
+  for (const auto& [name, t] : named_tables(top, "wall")) {
+    t.allow({"type", "point", "normal", "material"});
+    Wall<D> w;
+    w.name = name;
+    t.string("type", {"plane"});
+    w.point = to_vec<D>(t.numbers("point", D));
+    const Vec<D> n = to_vec<D>(t.numbers("normal", D));
+    if (!(n.norm() > 0.0)) t.fail("normal", "must be a nonzero vector", t.need("normal"));
+    w.normal = n / n.norm();
+    w.material = material_index(t, sys.materials);
+    sys.walls.push_back(std::move(w));
+  }
+
+  // [particles.NAME]: read and validate every group, then place the groups with fixed positions
+  // first (file groups, checked against each other; then lattice groups), then the random groups
+  // around everything placed so far. Within each kind groups go in file order; particle ids
+  // always follow the file order of the groups.
+  const auto group_tables = named_tables(top, "particles");
+  if (group_tables.empty()) fail(file, "particles", "missing (a scene needs at least one [particles.NAME] table)");
+  Builder<D> b{file, base_dir, sys, {}, {}};
+  for (std::size_t gi = 0; gi < group_tables.size(); ++gi) {
+    b.read_group(group_tables[gi].first, group_tables[gi].second);
+  }
+  double rmax = 0.0;
+  std::size_t total = 0;
+  for (const auto& g : b.groups) {
+    if (g.from_file) {
+      for (const double r : g.r) rmax = std::max(rmax, r);
+      total += g.r.size();
+    } else {
+      rmax = std::max(rmax, g.rmax);
+      total += g.count;
+    }
+  }
+  placement::OverlapGrid<D> grid(sys.lower, sys.upper, sys.periodic, 2.0 * rmax, total);
+  b.owner.reserve(total);
+  for (std::size_t gi = 0; gi < b.groups.size(); ++gi) {
+    if (!b.groups[gi].from_file) continue;
+    for (std::size_t i = 0; i < b.groups[gi].r.size(); ++i) b.check_and_insert(grid, gi, i);
+  }
+  for (std::size_t gi = 0; gi < b.groups.size(); ++gi) {
+    if (!b.groups[gi].from_file && b.groups[gi].lattice) b.generate(grid, gi, scene.seed);
+  }
+  for (std::size_t gi = 0; gi < b.groups.size(); ++gi) {
+    if (!b.groups[gi].from_file && !b.groups[gi].lattice) b.generate(grid, gi, scene.seed);
+  }
+
+  // Assemble in group order.
+  sys.x.reserve(total);
+  sys.v.reserve(total);
+  sys.w.reserve(total);
+  sys.radius.reserve(total);
+  sys.material.reserve(total);
+  scene.group.reserve(total);
+  for (std::size_t gi = 0; gi < b.groups.size(); ++gi) {
+    const Group<D>& g = b.groups[gi];
+    scene.group_names.push_back(g.name);
+    for (std::size_t i = 0; i < g.r.size(); ++i) {
+      sys.x.push_back(g.x[i]);
+      sys.v.push_back(g.v[i]);
+      sys.w.push_back(g.w[i]);
+      sys.radius.push_back(g.r[i]);
+      sys.material.push_back(g.material);
+      scene.group.push_back(static_cast<int>(gi));
+    }
+  }
+}
+
+Scene build_scene(toml::table& root, const std::string& file, const fs::path& base_dir,
+                  const std::vector<std::string>& overrides) {
+  apply_overrides(root, overrides, file);
+  Scene scene;
+  scene.path = file;
+  const TableReader top(scene.path, root, "");
+  top.allow({"run", "domain", "material", "particles", "wall", "output"});
+
+  // [run]
+  const TableReader run = top.sub("run");
+  run.allow({"dimension", "method", "end_time", "seed", "gravity", "queue", "tc", "collapse_count",
+             "collapse_window", "max_events", "dt", "threads"});
+  const std::int64_t dim = run.integer("dimension");
+  if (dim != 2 && dim != 3) run.fail("dimension", "must be 2 or 3", run.need("dimension"));
+  scene.dimension = static_cast<int>(dim);
+  scene.method = run.string_opt("method", {"edm", "tdm", "hybrid"}).value_or("edm");
+  scene.end_time = run.number("end_time", kPositive);
+  scene.seed = static_cast<std::uint64_t>(run.integer_or("seed", 1, kNonNegative));
+  scene.queue = run.string_opt("queue", {"calendar", "heap"}).value_or("calendar");
+  scene.tc = run.number_or("tc", 0.0, kNonNegative);
+  scene.collapse_count = static_cast<int>(run.integer_or("collapse_count", 1000, Range{2.0, 2147483647.0}));
+  scene.collapse_window = run.number_or("collapse_window", 0.0, kNonNegative);
+  scene.max_events = static_cast<std::uint64_t>(run.integer_or("max_events", 0, kNonNegative));
+  scene.dt = run.number_opt("dt", kPositive);
+  if (const auto th = run.integer_opt("threads", Range{1.0, 1048576.0})) scene.threads = static_cast<int>(*th);
+
+  // [output]
+  if (top.has("output")) {
+    const TableReader out = top.sub("output");
+    out.allow({"dir", "thermo_interval", "events", "snapshot_interval"});
+    scene.output.dir = out.string_opt("dir").value_or(scene.output.dir);
+    scene.output.thermo_interval = out.number_or("thermo_interval", 0.0, kNonNegative);
+    scene.output.events = out.boolean_or("events", false);
+    scene.output.snapshot_interval = out.number_or("snapshot_interval", 0.0, kNonNegative);
+  }
+
+  if (!top.has("domain")) top.need("domain");
+  if (scene.dimension == 2) {
+    build_system<2>(top, run, base_dir, scene);
+  } else {
+    build_system<3>(top, run, base_dir, scene);
+  }
+  return scene;
+}
+
+}  // namespace
+
+Scene load_scene(const std::string& path, const std::vector<std::string>& overrides) {
+  std::error_code ec;
+  if (fs::is_directory(path, ec)) throw SceneError(fmt::format("{}: cannot read scene file: it is a directory", path));
+  std::ifstream in(path, std::ios::binary);
+  if (!in) throw SceneError(fmt::format("{}: cannot read scene file: {}", path, std::strerror(errno)));
+  std::ostringstream ss;
+  ss << in.rdbuf();
+  if (in.bad()) throw SceneError(fmt::format("{}: cannot read scene file: read error", path));
+  fs::path base = fs::path(path).parent_path();
+  if (base.empty()) base = ".";
+  toml::table root = parse_toml(ss.str(), path);
+  return build_scene(root, path, base, overrides);
+}
+
+Scene load_scene_string(const std::string& toml_text, const std::string& name, const std::string& base_dir,
+                        const std::vector<std::string>& overrides) {
+  toml::table root = parse_toml(toml_text, name);
+  return build_scene(root, name, base_dir.empty() ? fs::path(".") : fs::path(base_dir), overrides);
+}
+
+}  // namespace matep

@@ -48,16 +48,18 @@ inline double cross_norm2(const V& r, const V& v) {
 }
 
 template <class V>
-inline double pair_collision_time(const V& r, const V& v, double sigma) {
+inline double pair_collision_time(const V& r, const V& v, double sigma, double limit = kNever) {
   const double b = r.dot(v);
   if (b >= 0.0) return kNever;  // receding or tangent: never an event
   double c = r.squaredNorm() - sigma * sigma;
-  if (std::abs(c) < 0.0625 * sigma * sigma) c = compensated_gap2(r, sigma);
+  // Cheap rejection against the caller's current best: the root is at least c / (-2b)
+  // (sqrt(disc) <= -b when c >= 0), so a pair that cannot beat `limit` costs no sqrt.
+  if (c > 0.0 && c >= limit * (-2.0 * b)) return kNever;
   // Discriminant b^2 - v^2 c written as v^2 sigma^2 - |r x v|^2 (Lagrange's identity): the
   // direct form cancels catastrophically when the pair starts far apart.
-  const double v2 = v.squaredNorm();
-  const double disc = v2 * sigma * sigma - cross_norm2(r, v);
+  const double disc = v.squaredNorm() * sigma * sigma - cross_norm2(r, v);
   if (disc <= 0.0) return kNever;  // miss
+  if (std::abs(c) < 0.0625 * sigma * sigma) c = compensated_gap2(r, sigma);
   const double t = c / (-b + std::sqrt(disc));
   return t > 0.0 ? t : 0.0;  // overlapping and approaching: now
 }

@@ -82,7 +82,6 @@ class EdmEngine {
     all_elastic_ = true;
     for (const auto& mat : sys.materials) all_elastic_ = all_elastic_ && mat.restitution.is_elastic();
     build_cells(2.0 * rmax);
-    cand_.reserve(256);
   }
 
   template <class T>
@@ -205,6 +204,21 @@ class EdmEngine {
     stride_[0] = 1;
     for (int k = 1; k < D; ++k) stride_[k] = stride_[k - 1] * nc_[k - 1];
     ncells_total_ = stride_[D - 1] * nc_[D - 1];
+    // Linear offsets of the 3^D neighbour cells, and of the 3^(D-1) cells of each face layer.
+    offsets_all_.clear();
+    for (auto& l : offsets_layer_) l.clear();
+    for (int m = 0; m < ipow3(D); ++m) {
+      int off = 0, rest = m;
+      std::array<int, D> o{};
+      for (int k = 0; k < D; ++k) {
+        o[k] = rest % 3 - 1;
+        rest /= 3;
+        off += o[k] * stride_[k];
+      }
+      offsets_all_.push_back(off);
+      for (int k = 0; k < D; ++k)
+        if (o[k] != 0) offsets_layer_[2 * k + (o[k] > 0)].push_back(off);
+    }
     head_.assign(ncells_total_, -1);
     next_.assign(N_, -1);
     cell_.resize(N_);
@@ -233,13 +247,25 @@ class EdmEngine {
     *link = next_[i];
   }
 
-  // Collects the particles j != i of the cells around i's cell into cand_, each with the slot of
-  // the image shift that brings it next to i. With layer_axis < 0 these are all 3^D cells; else
-  // only the layer one cell further along layer_axis in direction layer_dir (the cells that just
-  // came into range after a cell crossing). Gathering first and evaluating afterwards lets the
-  // neighbours' states be fetched from memory in parallel instead of one list link at a time.
-  void gather(int i, int layer_axis = -1, int layer_dir = 0) {
+  // Visits the particles j != i of the cells around i's cell, f(j, shift) with the image shift
+  // that brings j next to i. With layer_axis < 0 these are all 3^D cells; else only the layer one
+  // cell further along layer_axis in direction layer_dir (the cells that just came into range
+  // after a cell crossing).
+  template <class F>
+  void for_neighbours(int i, F&& f, int layer_axis = -1, int layer_dir = 0) const {
     const std::array<int, D> c = cell_[i];
+    // Fast path: a cell away from the grid's faces has its neighbours at fixed linear offsets.
+    bool interior = true;
+    for (int k = 0; k < D; ++k) interior = interior && c[k] >= 1 && c[k] < nc_[k] - 1;
+    if (interior) {
+      const int lin = linear(c);
+      const auto& offs = layer_axis < 0 ? offsets_all_ : offsets_layer_[2 * layer_axis + (layer_dir > 0)];
+      const Vec<D> zero = Vec<D>::Zero();
+      for (const int off : offs)
+        for (int j = head_[lin + off]; j >= 0; j = next_[j])
+          if (j != i) f(j, zero);
+      return;
+    }
     std::array<int, 3> nk[D];
     std::array<double, 3> sk[D];
     std::array<int, D> count{};
@@ -263,30 +289,19 @@ class EdmEngine {
         ++count[k];
       }
     }
-    cand_.clear();
-    int slot = 0;
-    auto add_cell = [&](int lin, const Vec<D>& shift) {
-      shift_[slot] = shift;
+    auto cell = [&](int lin, const Vec<D>& shift) {
       for (int j = head_[lin]; j >= 0; j = next_[j])
-        if (j != i) cand_.push_back({j, slot});
-      ++slot;
+        if (j != i) f(j, shift);
     };
     if constexpr (D == 2) {
       for (int a = 0; a < count[0]; ++a)
-        for (int b = 0; b < count[1]; ++b) add_cell(nk[0][a] + nk[1][b], Vec<D>(sk[0][a], sk[1][b]));
+        for (int b = 0; b < count[1]; ++b) cell(nk[0][a] + nk[1][b], Vec<D>(sk[0][a], sk[1][b]));
     } else {
       for (int a = 0; a < count[0]; ++a)
         for (int b = 0; b < count[1]; ++b)
           for (int e = 0; e < count[2]; ++e)
-            add_cell(nk[0][a] + nk[1][b] + nk[2][e], Vec<D>(sk[0][a], sk[1][b], sk[2][e]));
+            cell(nk[0][a] + nk[1][b] + nk[2][e], Vec<D>(sk[0][a], sk[1][b], sk[2][e]));
     }
-  }
-
-  // Visits every particle j != i in the 3^D cells around i: f(j, shift).
-  template <class F>
-  void for_neighbours(int i, F&& f) {
-    gather(i);
-    for (const auto& c : cand_) f(c.j, shift_[c.slot]);
   }
 
   // ---- motion ---------------------------------------------------------------------------------
@@ -328,28 +343,32 @@ class EdmEngine {
     cross_aux_[i] = aux;
   }
 
-  // Tests the gathered candidates (cand_) against particle i and keeps the earliest pair event
-  // if it beats the current best (best, type, partner).
-  void test_candidates(int i, double now, double& best, std::uint8_t& type, int& partner) const {
+  // Tests the neighbours of i (all, or one layer) and keeps the earliest pair event if it beats
+  // the current best (best, type, partner).
+  void test_pairs(int i, double now, double& best, std::uint8_t& type, int& partner, int layer_axis = -1,
+                  int layer_dir = 0) const {
     const Hot<D>& hi = hot_[i];
     const Vec<D> xi = hi.x, vi = hi.v;
     const double Ri = hi.R;
-    for (const auto& c : cand_) {
-      const Hot<D>& hj = hot_[c.j];
-      const double dtj = now - hj.t;
-      Vec<D> r = xi - hj.x - shift_[c.slot] - hj.v * dtj;
-      Vec<D> v = vi - hj.v;
-      if (gravity_) {
-        r -= (0.5 * dtj * dtj) * g_;
-        v -= g_ * dtj;
-      }
-      const double dt = pair_collision_time(r, v, Ri + hj.R);
-      if (dt < best) {
-        best = dt;
-        type = kPair;
-        partner = c.j;
-      }
-    }
+    for_neighbours(
+        i,
+        [&](int j, const Vec<D>& shift) {
+          const Hot<D>& hj = hot_[j];
+          const double dtj = now - hj.t;
+          Vec<D> r = xi - hj.x - shift - hj.v * dtj;
+          Vec<D> v = vi - hj.v;
+          if (gravity_) {
+            r -= (0.5 * dtj * dtj) * g_;
+            v -= g_ * dtj;
+          }
+          const double dt = pair_collision_time(r, v, Ri + hj.R, best);
+          if (dt < best) {
+            best = dt;
+            type = kPair;
+            partner = j;
+          }
+        },
+        layer_axis, layer_dir);
   }
 
   void schedule(int i) { queue_->set(i, std::min(ev_t_[i], cross_t_[i])); }
@@ -370,8 +389,7 @@ class EdmEngine {
         partner = static_cast<int>(w);
       }
     }
-    gather(i);
-    test_candidates(i, now, best, type, partner);
+    test_pairs(i, now, best, type, partner);
     ev_t_[i] = now + best;
     ev_type_[i] = type;
     ev_partner_[i] = partner;
@@ -390,8 +408,7 @@ class EdmEngine {
     double best = stored;
     std::uint8_t type = ev_type_[i];
     int partner = ev_partner_[i];
-    gather(i, axis, dir);
-    test_candidates(i, now, best, type, partner);
+    test_pairs(i, now, best, type, partner, axis, dir);
     // Note the new partner may be the stored one with a new time (a stale event with it).
     if (best < stored) {
       ev_partner_[i] = partner;
@@ -646,13 +663,10 @@ class EdmEngine {
   Vec<D> cw_;
   int ncells_total_ = 0;
   std::vector<int> head_, next_;
+  std::vector<int> offsets_all_;
+  std::array<std::vector<int>, 2 * D> offsets_layer_;
+  static constexpr int ipow3(int d) { return d == 0 ? 1 : 3 * ipow3(d - 1); }
   std::vector<std::array<int, D>> cell_;
-  struct Candidate {
-    int j;
-    int slot;
-  };
-  std::vector<Candidate> cand_;
-  std::array<Vec<D>, 27> shift_;
 
   EventCounts counts_;
   double virial_ = 0.0;

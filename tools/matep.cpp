@@ -1,14 +1,17 @@
-// The matep command line: run | check (and --help, --version).
+// The matep command line: run | check | log (and --help, --version).
 #include <fmt/format.h>
 #include <unistd.h>
 
 #include <boost/program_options.hpp>
+#include <algorithm>
 #include <chrono>
 #include <cstdio>
 #include <iostream>
+#include <optional>
 #include <string>
 #include <vector>
 
+#include "io/log_tools.hpp"
 #include "io/output.hpp"
 #include "io/run.hpp"
 #include "io/scene.hpp"
@@ -17,6 +20,7 @@ namespace po = boost::program_options;
 
 namespace {
 
+constexpr int kExitViolation = 1;  // matep log verify: a record breaks a conservation law
 constexpr int kExitUsage = 2;     // bad command line or bad input
 constexpr int kExitStopped = 3;   // the run stopped early (collapse, escape, event cap)
 
@@ -26,11 +30,26 @@ const char* kUsage =
     "usage:\n"
     "  matep run SCENE.toml [--set KEY=VALUE]... [--out DIR] [--quiet]\n"
     "  matep check SCENE.toml [--set KEY=VALUE]...\n"
+    "  matep log stats LOG [--bins N]\n"
+    "  matep log filter LOG --out FILE [--from T] [--to T] [--ids I,J,...] [--kind K]... [--csv]\n"
+    "  matep log verify LOG [--scene SCENE.toml [--set KEY=VALUE]...] [--tol TOL]\n"
+    "  matep log export LOG [--out FILE.csv]\n"
     "  matep --help | --version\n"
     "\n"
     "  run     runs the scene and writes thermo.csv, final_state.csv, summary.json\n"
     "          (and events.bin with output.events = true) into output.dir or --out\n"
     "  check   validates the scene and prints what will be modelled\n"
+    "  log     reads an event log (events.bin) record by record:\n"
+    "          stats   counts by kind, time span, collision rate in N time bins (default 10),\n"
+    "                  busiest particle, largest impact speed, min / max / mean e\n"
+    "          filter  writes the records with from <= time <= to, i or j (pair) in --ids and\n"
+    "                  a kind among --kind (pair, wall, soft, hard; repeatable) in the same\n"
+    "                  binary format, or as CSV with --csv or a FILE ending in .csv\n"
+    "          verify  replays every collision: momentum, normal velocity -e, tangential\n"
+    "                  velocity and spins unchanged, energy loss (1-e^2) m* u_n^2/2, relative\n"
+    "                  to --tol (default 1e-9); with --scene also e against the materials'\n"
+    "                  restitution models. Exit status 1 at the first violation\n"
+    "          export  every record as CSV (stdout without --out)\n"
     "\n"
     "  --set KEY=VALUE  overrides any scene key by its dotted path, e.g.\n"
     "                   --set run.end_time=2 --set material.glass.restitution=0.8\n"
@@ -104,6 +123,95 @@ int cmd_run(const std::vector<std::string>& rest) {
   return 0;
 }
 
+// ---- matep log -------------------------------------------------------------------------------
+
+po::variables_map parse_log(const std::vector<std::string>& rest, po::options_description& opts) {
+  opts.add_options()("log", po::value<std::string>(), "event log");
+  po::positional_options_description pos;
+  pos.add("log", 1);
+  po::variables_map vm;
+  po::store(po::command_line_parser(rest).options(opts).positional(pos).run(), vm);
+  po::notify(vm);
+  if (!vm.count("log")) throw po::error("missing LOG (an events.bin file)");
+  return vm;
+}
+
+int cmd_log(const std::vector<std::string>& args) {
+  if (args.empty()) return fail("matep log needs a subcommand: stats, filter, verify or export (try matep --help)");
+  const std::string sub = args[0];
+  const std::vector<std::string> rest(args.begin() + 1, args.end());
+  if (sub == "stats") {
+    po::options_description opts("options");
+    opts.add_options()("bins", po::value<long long>()->default_value(10), "time bins");
+    const po::variables_map vm = parse_log(rest, opts);
+    const long long bins = vm["bins"].as<long long>();
+    if (bins < 1 || bins > 1000000) return fail(fmt::format("--bins must be between 1 and 1000000 (got {})", bins));
+    const matep::LogStats s = matep::compute_log_stats(vm["log"].as<std::string>(), static_cast<std::size_t>(bins));
+    fmt::print("{}", matep::format_log_stats(s));
+    return 0;
+  }
+  if (sub == "filter") {
+    po::options_description opts("options");
+    opts.add_options()("out", po::value<std::string>(), "output file")("from", po::value<double>(), "from time")(
+        "to", po::value<double>(), "to time")("ids", po::value<std::vector<std::string>>()->composing(), "ids")(
+        "kind", po::value<std::vector<std::string>>()->composing(), "kinds")("csv", "write CSV");
+    const po::variables_map vm = parse_log(rest, opts);
+    if (!vm.count("out")) throw po::error("matep log filter needs --out FILE");
+    matep::LogFilter f;
+    if (vm.count("from")) f.from = vm["from"].as<double>();
+    if (vm.count("to")) f.to = vm["to"].as<double>();
+    if (vm.count("ids"))
+      for (const auto& list : vm["ids"].as<std::vector<std::string>>())
+        for (std::uint32_t id : matep::parse_id_list(list)) f.ids.push_back(id);
+    std::sort(f.ids.begin(), f.ids.end());
+    f.ids.erase(std::unique(f.ids.begin(), f.ids.end()), f.ids.end());
+    if (vm.count("kind"))
+      for (const auto& k : vm["kind"].as<std::vector<std::string>>()) f.kinds.push_back(matep::parse_event_kind(k));
+    const std::string out = vm["out"].as<std::string>();
+    const bool csv = vm.count("csv") || (out.size() >= 4 && out.compare(out.size() - 4, 4, ".csv") == 0);
+    const matep::FilterResult r = matep::filter_log(vm["log"].as<std::string>(), out, f, csv);
+    fmt::print("matep: {} of {} records written to {}{}\n", r.written, r.read, out, csv ? " (CSV)" : "");
+    return 0;
+  }
+  if (sub == "verify") {
+    po::options_description opts("options");
+    opts.add_options()("scene", po::value<std::string>(), "scene file")(
+        "set", po::value<std::vector<std::string>>()->composing(), "override")(
+        "tol", po::value<double>()->default_value(1e-9), "relative tolerance");
+    const po::variables_map vm = parse_log(rest, opts);
+    const double tol = vm["tol"].as<double>();
+    if (!(tol >= 0.0)) return fail(fmt::format("--tol must be >= 0 (got {})", tol));
+    if (vm.count("set") && !vm.count("scene")) return fail("--set needs --scene SCENE.toml");
+    std::optional<matep::Scene> scene;
+    if (vm.count("scene"))
+      scene = matep::load_scene(vm["scene"].as<std::string>(),
+                                vm.count("set") ? vm["set"].as<std::vector<std::string>>() : std::vector<std::string>{});
+    const std::string log = vm["log"].as<std::string>();
+    const matep::VerifyResult r = matep::verify_log(log, scene ? &*scene : nullptr, tol);
+    if (!r.ok) {
+      std::fflush(stdout);
+      fmt::print(stderr, "matep: verify failed: {}\n", r.message);
+      return kExitViolation;
+    }
+    std::string extra;
+    if (r.model_checked) extra += fmt::format("; e matches the restitution models of {}", scene->path);
+    if (r.skipped) extra += fmt::format("; {} non-collision records skipped", r.skipped);
+    fmt::print("verified {} records: momentum, restitution, energy OK ({} pair, {} wall collisions, tol {:g}{})\n",
+               r.pair + r.wall, r.pair, r.wall, tol, extra);
+    return 0;
+  }
+  if (sub == "export") {
+    po::options_description opts("options");
+    opts.add_options()("out", po::value<std::string>(), "output CSV");
+    const po::variables_map vm = parse_log(rest, opts);
+    const std::string out = vm.count("out") ? vm["out"].as<std::string>() : std::string();
+    const std::uint64_t n = matep::export_csv(vm["log"].as<std::string>(), out);
+    if (!out.empty()) fmt::print("matep: {} records written to {}\n", n, out);
+    return 0;
+  }
+  return fail(fmt::format("unknown log subcommand '{}' (stats, filter, verify or export; try matep --help)", sub));
+}
+
 }  // namespace
 
 int main(int argc, char** argv) {
@@ -130,6 +238,7 @@ int main(int argc, char** argv) {
       }
     if (cmd == "run") return cmd_run(rest);
     if (cmd == "check") return cmd_check(rest);
+    if (cmd == "log") return cmd_log(rest);
     return fail(fmt::format("unknown command '{}' (try matep --help)", cmd));
   } catch (const po::error& e) {
     return fail(fmt::format("{} (try matep --help)", e.what()));

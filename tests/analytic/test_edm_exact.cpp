@@ -224,3 +224,42 @@ TEST(EdmExact, DenseInelasticColumnCollapsesWithinBoundedTime) {
               (unsigned long long)res.counts.collisions());
   EXPECT_NE(res.message.find("inelastic collapse"), std::string::npos);
 }
+
+TEST(EdmExact, ElasticBallUnderGravityConservesKineticPlusPotentialEnergy) {
+  const System<2> sys = bouncing_ball<2>(1.0, 1.0);
+  EdmSettings set;
+  set.end_time = 10.0;
+  set.thermo_interval = 0.01;
+  Recorder<2> rec;
+  const auto res = run_edm<2>(sys, set, QueueKind::Calendar, {&rec});
+  ASSERT_EQ(res.status, "ok");
+  ASSERT_GT(rec.samples.size(), 900u);
+  // E = KE - sum m g.x; at t = 0 the ball is at rest at height h + R = 1.05 m.
+  const double m = sys.mass(0), E0 = m * 9.81 * 1.05;
+  for (const auto& s : rec.samples) {
+    EXPECT_NEAR(s.kinetic_energy + s.potential_energy, E0, 1e-12 * E0) << "t = " << s.time;
+    EXPECT_DOUBLE_EQ(s.temperature, 2.0 * s.kinetic_energy / 2.0);  // T = m v^2 / d, N = 1, d = 2
+  }
+  EXPECT_GT(rec.samples.back().collisions, 8u);  // about 11 bounces in 10 s
+}
+
+TEST(EdmExact, RotationalEnergyOfSpinningParticlesIsCarriedThrough) {
+  // Smooth collisions do not change spins; the rotational energy is sum q m R^2 w^2 / 2 with
+  // q = 2/5 for spheres (1/2 for disks) and stays constant.
+  System<3> sys = test::lattice_gas<3>(6, 0.2, 1.0, 0.8, 2);
+  sys.w.resize(sys.size());
+  double expected = 0.0;
+  for (std::size_t i = 0; i < sys.size(); ++i) {
+    sys.w[i] = Vec<3>(0.1 * i, -0.2, 0.3);
+    expected += 0.5 * 0.4 * sys.mass(i) * 0.25 * sys.w[i].squaredNorm();
+  }
+  EdmSettings set;
+  set.end_time = 2.0;
+  set.thermo_interval = 1.0;
+  Recorder<3> rec;
+  const auto res = run_edm<3>(sys, set, QueueKind::Calendar, {&rec});
+  ASSERT_EQ(rec.samples.size(), 3u);
+  for (const auto& s : rec.samples) EXPECT_NEAR(s.rotational_energy, expected, 1e-12 * expected);
+  ASSERT_EQ(res.w.size(), sys.size());
+  EXPECT_EQ(res.w[7], sys.w[7]);
+}

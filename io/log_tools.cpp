@@ -1,0 +1,697 @@
+#include "io/log_tools.hpp"
+
+#include <fmt/format.h>
+
+#include <algorithm>
+#include <array>
+#include <cerrno>
+#include <charconv>
+#include <cmath>
+#include <cstring>
+#include <filesystem>
+#include <iterator>
+#include <limits>
+#include <memory>
+#include <new>
+#include <optional>
+#include <stdexcept>
+#include <variant>
+
+#include "io/scene.hpp"
+
+namespace matep {
+
+namespace fs = std::filesystem;
+
+// ---- kinds, id lists --------------------------------------------------------------------------
+
+const char* event_kind_name(std::uint8_t kind) {
+  switch (kind) {
+    case 1: return "pair";
+    case 2: return "wall";
+    case 3: return "cell";
+    case 4: return "soft";
+    case 5: return "hard";
+    default: return "unknown";
+  }
+}
+
+std::uint8_t parse_event_kind(std::string_view word) {
+  if (word == "pair") return static_cast<std::uint8_t>(EventKind::PairCollision);
+  if (word == "wall") return static_cast<std::uint8_t>(EventKind::WallCollision);
+  if (word == "soft") return static_cast<std::uint8_t>(EventKind::ToSoft);
+  if (word == "hard") return static_cast<std::uint8_t>(EventKind::ToHard);
+  throw std::invalid_argument(
+      fmt::format("--kind: unknown event kind '{}' (expected pair, wall, soft or hard)", word));
+}
+
+std::vector<std::uint32_t> parse_id_list(std::string_view list) {
+  std::vector<std::uint32_t> ids;
+  std::size_t pos = 0;
+  while (pos <= list.size()) {
+    const std::size_t comma = std::min(list.find(',', pos), list.size());
+    std::string_view item = list.substr(pos, comma - pos);
+    while (!item.empty() && item.front() == ' ') item.remove_prefix(1);
+    while (!item.empty() && item.back() == ' ') item.remove_suffix(1);
+    std::uint32_t v = 0;
+    const auto [end, ec] = std::from_chars(item.data(), item.data() + item.size(), v);
+    if (item.empty() || ec != std::errc() || end != item.data() + item.size())
+      throw std::invalid_argument(fmt::format(
+          "--ids: '{}' is not a particle id in '{}' (expected ids >= 0 separated by commas)", item,
+          list));
+    ids.push_back(v);
+    pos = comma + 1;
+  }
+  std::sort(ids.begin(), ids.end());
+  ids.erase(std::unique(ids.begin(), ids.end()), ids.end());
+  return ids;
+}
+
+// ---- opening ----------------------------------------------------------------------------------
+
+namespace {
+
+// A directory opens as a FILE* on Linux; say what it is before the reader sees it.
+void check_not_directory(const std::string& path) {
+  std::error_code ec;
+  if (fs::is_directory(path, ec))
+    throw IoError(fmt::format("{}: is a directory, not an event log", path));
+}
+
+// The reader has already validated the header; this adds the whole-number-of-records check.
+LogFile check_size(const std::string& path, const EventLogReader& reader) {
+  LogFile lf;
+  lf.header = reader.header();
+  std::error_code ec;
+  lf.file_size = fs::file_size(path, ec);
+  if (ec) throw IoError(fmt::format("{}: cannot read the event log size: {}", path, ec.message()));
+  const std::uint64_t body = lf.file_size - kEventLogHeaderSize;  // >= 0: the reader checked
+  lf.records = body / kEventRecordSize;
+  const std::uint64_t rest = body % kEventRecordSize;
+  if (rest != 0)
+    throw IoError(fmt::format("{}: truncated event record at byte offset {} ({} of {} bytes)", path,
+                              record_offset(lf.records), rest, kEventRecordSize));
+  return lf;
+}
+
+struct FileCloser {
+  void operator()(std::FILE* f) const {
+    if (f) std::fclose(f);
+  }
+};
+using FilePtr = std::unique_ptr<std::FILE, FileCloser>;
+
+EventRecord read_record_at(const std::string& path, std::uint64_t index) {
+  FilePtr f(std::fopen(path.c_str(), "rb"));
+  if (!f) throw IoError(fmt::format("{}: cannot open event log: {}", path, std::strerror(errno)));
+  const std::uint64_t off = record_offset(index);
+  unsigned char buf[kEventRecordSize];
+  if (fseeko(f.get(), static_cast<off_t>(off), SEEK_SET) != 0 ||
+      std::fread(buf, 1, kEventRecordSize, f.get()) != kEventRecordSize)
+    throw IoError(fmt::format("{}: cannot read the event record at byte offset {}", path, off));
+  EventRecord r = decode_event_record(buf);
+  if (r.kind < 1 || r.kind > 5)
+    throw IoError(fmt::format("{}: corrupt event record at byte offset {} (kind {})", path, off,
+                              static_cast<int>(r.kind)));
+  return r;
+}
+
+bool is_collision(std::uint8_t kind) {
+  return kind == static_cast<std::uint8_t>(EventKind::PairCollision) ||
+         kind == static_cast<std::uint8_t>(EventKind::WallCollision);
+}
+bool is_pair(std::uint8_t kind) { return kind == static_cast<std::uint8_t>(EventKind::PairCollision); }
+
+double dot3(const double* a, const double* b) { return a[0] * b[0] + a[1] * b[1] + a[2] * b[2]; }
+double norm3(const double* a) { return std::sqrt(dot3(a, a)); }
+
+// Output file that is removed again unless commit() is called.
+class OutFile {
+ public:
+  OutFile(const std::string& path, const char* mode) : path_(path) {
+    f_ = std::fopen(path.c_str(), mode);
+    if (!f_) throw IoError(fmt::format("{}: cannot open for writing: {}", path, std::strerror(errno)));
+    buffer_.resize(1 << 20);
+    std::setvbuf(f_, buffer_.data(), _IOFBF, buffer_.size());
+  }
+  ~OutFile() {
+    if (f_) {
+      std::fclose(f_);
+      std::error_code ec;
+      fs::remove(path_, ec);
+    }
+  }
+  OutFile(const OutFile&) = delete;
+  OutFile& operator=(const OutFile&) = delete;
+  std::FILE* get() const { return f_; }
+  void write(const void* p, std::size_t n) {
+    if (n && std::fwrite(p, 1, n, f_) != n)
+      throw IoError(fmt::format("{}: write failed: {}", path_, std::strerror(errno)));
+  }
+  void commit() {
+    std::FILE* f = f_;
+    f_ = nullptr;
+    if (std::fclose(f) != 0) {
+      std::error_code ec;
+      fs::remove(path_, ec);
+      throw IoError(fmt::format("{}: write failed: {}", path_, std::strerror(errno)));
+    }
+  }
+
+ private:
+  std::string path_;
+  std::FILE* f_ = nullptr;
+  std::vector<char> buffer_;
+};
+
+void write_all(std::FILE* f, const std::string& s, const std::string& what) {
+  if (!s.empty() && std::fwrite(s.data(), 1, s.size(), f) != s.size())
+    throw IoError(fmt::format("{}: write failed: {}", what, std::strerror(errno)));
+}
+
+}  // namespace
+
+LogFile inspect_log(const std::string& path) {
+  check_not_directory(path);
+  EventLogReader reader(path);
+  return check_size(path, reader);
+}
+
+// ---- stats ------------------------------------------------------------------------------------
+
+LogStats compute_log_stats(const std::string& path, std::size_t nbins) {
+  if (nbins == 0) throw std::invalid_argument("--bins must be at least 1");
+  check_not_directory(path);
+  EventLogReader reader(path);
+  LogStats s;
+  s.path = path;
+  s.file = check_size(path, reader);
+  if (s.file.records == 0) return s;
+
+  EventRecord rec;
+  reader.next(rec);  // the first record (records > 0, size checked)
+  s.t_first = rec.time;
+  s.t_last = read_record_at(path, s.file.records - 1).time;
+  const double span = s.t_last - s.t_first;
+  s.bins.resize(nbins);
+  for (std::size_t k = 0; k < nbins; ++k) {
+    s.bins[k].t0 = s.t_first + span * static_cast<double>(k) / static_cast<double>(nbins);
+    s.bins[k].t1 = k + 1 == nbins ? s.t_last
+                                  : s.t_first + span * static_cast<double>(k + 1) / static_cast<double>(nbins);
+  }
+  const double bins_per_time = span > 0.0 ? static_cast<double>(nbins) / span : 0.0;
+
+  // Per-particle counts: the only O(particles) memory. Ids are 32-bit.
+  const std::uint64_t np = s.file.header.particles;
+  if (np > (std::uint64_t{1} << 32))
+    throw IoError(fmt::format("{}: corrupt event log header (particle count {} at byte offset 24)", path, np));
+  std::vector<std::uint64_t> per_particle;
+  try {
+    per_particle.assign(np, 0);
+  } catch (const std::bad_alloc&) {
+    throw IoError(fmt::format("{}: cannot allocate per-particle counts for {} particles (header, byte "
+                              "offset 24)",
+                              path, np));
+  }
+  double e_sum = 0.0, e_comp = 0.0;
+  std::uint64_t index = 0;
+  do {
+    s.by_kind[rec.kind] += 1;
+    if (is_collision(rec.kind)) {
+      const bool pair = is_pair(rec.kind);
+      if (rec.i >= per_particle.size() || (pair && rec.j >= per_particle.size()))
+        throw IoError(fmt::format("{}: corrupt event record at byte offset {} (particle {} in a log "
+                                  "of {} particles)",
+                                  path, record_offset(index),
+                                  rec.i >= per_particle.size() ? rec.i : rec.j, per_particle.size()));
+      ++per_particle[rec.i];
+      if (pair) ++per_particle[rec.j];
+
+      double k = std::floor((rec.time - s.t_first) * bins_per_time);
+      if (!(k >= 0.0)) k = 0.0;  // also NaN
+      const std::size_t b = std::min(static_cast<std::size_t>(std::min(k, 1e18)), nbins - 1);
+      (pair ? s.bins[b].pair : s.bins[b].wall) += 1;
+
+      double g[3];
+      for (int c = 0; c < 3; ++c) g[c] = rec.vi_before[c] - rec.vj_before[c];
+      const double u = std::abs(dot3(g, rec.normal));
+      if (s.collisions == 0 || u > s.max_impact) {
+        s.max_impact = u;
+        s.max_impact_index = index;
+        s.max_impact_time = rec.time;
+        s.max_impact_kind = rec.kind;
+        s.max_impact_i = rec.i;
+        s.max_impact_j = rec.j;
+      }
+      if (s.collisions == 0 || rec.e < s.e_min) {
+        s.e_min = rec.e;
+        s.e_min_index = index;
+      }
+      if (s.collisions == 0 || rec.e > s.e_max) {
+        s.e_max = rec.e;
+        s.e_max_index = index;
+      }
+      const double t = e_sum + rec.e;  // Neumaier-compensated sum (1e8 records keep all digits)
+      e_comp += std::abs(e_sum) >= std::abs(rec.e) ? (e_sum - t) + rec.e : (rec.e - t) + e_sum;
+      e_sum = t;
+      ++s.collisions;
+    }
+    ++index;
+  } while (reader.next(rec));
+
+  if (s.collisions) s.e_mean = (e_sum + e_comp) / static_cast<double>(s.collisions);
+  for (auto& b : s.bins) {
+    const double w = b.t1 - b.t0;
+    b.rate = w > 0.0 ? static_cast<double>(b.pair + b.wall) / w : 0.0;
+  }
+  for (std::size_t p = 0; p < per_particle.size(); ++p) {
+    if (per_particle[p]) ++s.particles_collided;
+    if (per_particle[p] > s.busiest_count) {
+      s.busiest_count = per_particle[p];
+      s.busiest = static_cast<std::uint32_t>(p);
+    }
+  }
+  return s;
+}
+
+std::string format_log_stats(const LogStats& s) {
+  std::string out;
+  auto o = std::back_inserter(out);
+  const auto& h = s.file.header;
+  fmt::format_to(o, "event log   {}\n", s.path);
+  fmt::format_to(o, "format      version {}, {}D, {} particles, {} bytes\n", h.version, h.dimension,
+                 h.particles, s.file.file_size);
+  fmt::format_to(o, "records     {}\n", s.file.records);
+  if (s.file.records == 0) {
+    fmt::format_to(o, "(no records)\n");
+    return out;
+  }
+  fmt::format_to(o, "time span   {:.10g} .. {:.10g}  ({:.6g})\n\n", s.t_first, s.t_last,
+                 s.t_last - s.t_first);
+
+  fmt::format_to(o, "{:<22}{:>14}\n", "kind", "records");
+  fmt::format_to(o, "{:<22}{:>14}\n", "pair collisions", s.by_kind[1]);
+  fmt::format_to(o, "{:<22}{:>14}\n", "wall collisions", s.by_kind[2]);
+  if (s.by_kind[3]) fmt::format_to(o, "{:<22}{:>14}\n", "cell crossings", s.by_kind[3]);
+  fmt::format_to(o, "{:<22}{:>14}\n", "switches to soft", s.by_kind[4]);
+  fmt::format_to(o, "{:<22}{:>14}\n\n", "switches to hard", s.by_kind[5]);
+
+  fmt::format_to(o, "collision rate (pair + wall collisions per unit time), {} bins\n", s.bins.size());
+  fmt::format_to(o, "{:>16} {:>16} {:>12} {:>12} {:>14}\n", "t from", "t to", "pair", "wall", "rate");
+  for (const auto& b : s.bins) {
+    if (b.t1 > b.t0)
+      fmt::format_to(o, "{:>16.9g} {:>16.9g} {:>12} {:>12} {:>14.6g}\n", b.t0, b.t1, b.pair, b.wall,
+                     b.rate);
+    else
+      fmt::format_to(o, "{:>16.9g} {:>16.9g} {:>12} {:>12} {:>14}\n", b.t0, b.t1, b.pair, b.wall, "-");
+  }
+  fmt::format_to(o, "\n");
+
+  if (s.collisions == 0) {
+    fmt::format_to(o, "no collisions\n");
+    return out;
+  }
+  fmt::format_to(o, "{:<22}particle {} ({} collision{})\n", "most collisions", s.busiest,
+                 s.busiest_count, s.busiest_count == 1 ? "" : "s");
+  fmt::format_to(o, "{:<22}{} of {}\n", "particles collided", s.particles_collided, h.particles);
+  if (is_pair(s.max_impact_kind))
+    fmt::format_to(o, "{:<22}{:.10g}  (record {}, t = {:.10g}, pair {}-{})\n", "largest impact u_n",
+                   s.max_impact, s.max_impact_index, s.max_impact_time, s.max_impact_i, s.max_impact_j);
+  else
+    fmt::format_to(o, "{:<22}{:.10g}  (record {}, t = {:.10g}, particle {} on wall {})\n",
+                   "largest impact u_n", s.max_impact, s.max_impact_index, s.max_impact_time,
+                   s.max_impact_i, s.max_impact_j);
+  fmt::format_to(o, "{:<22}min {:.10g} (record {}), max {:.10g} (record {}), mean {:.10g}\n",
+                 "restitution e", s.e_min, s.e_min_index, s.e_max, s.e_max_index, s.e_mean);
+  return out;
+}
+
+// ---- filter / export --------------------------------------------------------------------------
+
+bool LogFilter::matches(const EventRecord& r) const {
+  if (from && !(r.time >= *from)) return false;
+  if (to && !(r.time <= *to)) return false;
+  if (!kinds.empty() && std::find(kinds.begin(), kinds.end(), r.kind) == kinds.end()) return false;
+  if (!ids.empty()) {
+    const bool hit_i = std::binary_search(ids.begin(), ids.end(), r.i);
+    const bool hit_j = is_pair(r.kind) && std::binary_search(ids.begin(), ids.end(), r.j);
+    if (!hit_i && !hit_j) return false;
+  }
+  return true;
+}
+
+std::string csv_header() {
+  std::string h = "time,kind,i,j,mi,mj,e";
+  const char* vecs[] = {"n", "vi_b", "vj_b", "vi_a", "vj_a", "wi_b", "wj_b", "wi_a", "wj_a"};
+  for (const char* v : vecs)
+    for (const char* c : {"x", "y", "z"}) h += fmt::format(",{}{}", v, c);
+  return h;
+}
+
+void append_csv_row(std::string& buf, const EventRecord& r) {
+  auto o = std::back_inserter(buf);
+  fmt::format_to(o, "{},{},{},{},{},{},{}", r.time, event_kind_name(r.kind), r.i, r.j, r.mi, r.mj, r.e);
+  for (const double* v : {r.normal, r.vi_before, r.vj_before, r.vi_after, r.vj_after, r.wi_before,
+                          r.wj_before, r.wi_after, r.wj_after})
+    fmt::format_to(o, ",{},{},{}", v[0], v[1], v[2]);
+  buf += '\n';
+}
+
+FilterResult filter_log(const std::string& in, const std::string& out, const LogFilter& filter,
+                        bool csv) {
+  check_not_directory(in);
+  EventLogReader reader(in);
+  check_size(in, reader);
+  std::error_code ec;
+  if (fs::exists(out, ec) && fs::equivalent(in, out, ec))
+    throw IoError(fmt::format("{}: the filtered log would overwrite its input", out));
+
+  unsigned char header[kEventLogHeaderSize];
+  {
+    FilePtr f(std::fopen(in.c_str(), "rb"));
+    if (!f || std::fread(header, 1, kEventLogHeaderSize, f.get()) != kEventLogHeaderSize)
+      throw IoError(fmt::format("{}: cannot read the event log header", in));
+  }
+  OutFile o(out, csv ? "w" : "wb");
+  std::string text;
+  if (csv)
+    text = csv_header() + "\n";
+  else
+    o.write(header, kEventLogHeaderSize);
+
+  FilterResult res;
+  EventRecord rec;
+  unsigned char buf[kEventRecordSize];
+  while (reader.next(rec)) {
+    ++res.read;
+    if (!filter.matches(rec)) continue;
+    ++res.written;
+    if (csv) {
+      append_csv_row(text, rec);
+      if (text.size() > (1u << 20)) {
+        o.write(text.data(), text.size());
+        text.clear();
+      }
+    } else {
+      encode_event_record(rec, buf);
+      o.write(buf, kEventRecordSize);
+    }
+  }
+  o.write(text.data(), text.size());
+  o.commit();
+  return res;
+}
+
+std::uint64_t export_csv(const std::string& in, std::FILE* out) {
+  check_not_directory(in);
+  EventLogReader reader(in);
+  check_size(in, reader);
+  std::string text = csv_header() + "\n";
+  std::uint64_t rows = 0;
+  EventRecord rec;
+  while (reader.next(rec)) {
+    append_csv_row(text, rec);
+    ++rows;
+    if (text.size() > (1u << 20)) {
+      write_all(out, text, "CSV output");
+      text.clear();
+    }
+  }
+  write_all(out, text, "CSV output");
+  return rows;
+}
+
+std::uint64_t export_csv(const std::string& in, const std::string& out_path) {
+  if (out_path.empty()) {
+    const std::uint64_t n = export_csv(in, stdout);
+    std::fflush(stdout);
+    return n;
+  }
+  {
+    // Validate the input before creating the output file.
+    check_not_directory(in);
+  EventLogReader reader(in);
+    check_size(in, reader);
+  }
+  std::error_code ec;
+  if (fs::exists(out_path, ec) && fs::equivalent(in, out_path, ec))
+    throw IoError(fmt::format("{}: the CSV would overwrite its input", out_path));
+  OutFile o(out_path, "w");
+  const std::uint64_t n = export_csv(in, o.get());
+  o.commit();
+  return n;
+}
+
+// ---- verify -----------------------------------------------------------------------------------
+
+namespace {
+
+// What verify needs from a scene, independent of the dimension.
+struct SceneView {
+  std::string path;
+  double tc = 0.0;
+  std::vector<Material> materials;
+  std::vector<int> material;   // per particle
+  std::vector<double> mass;    // per particle
+  std::vector<int> wall_material;
+  std::vector<std::array<double, 3>> wall_normal;
+};
+
+template <int D>
+void fill_view(SceneView& v, const System<D>& sys, const Scene& scene, const EventLogHeader& h,
+               const std::string& log) {
+  if (static_cast<std::uint32_t>(D) != h.dimension)
+    throw IoError(fmt::format("{}: the scene is {}D but the event log {} is {}D", scene.path, D, log,
+                              h.dimension));
+  if (sys.size() != h.particles)
+    throw IoError(fmt::format("{}: the scene has {} particles but the event log {} has {}", scene.path,
+                              sys.size(), log, h.particles));
+  v.materials = sys.materials;
+  v.material = sys.material;
+  v.mass.resize(sys.size());
+  for (std::size_t p = 0; p < sys.size(); ++p) v.mass[p] = sys.mass(p);
+  for (const auto& w : sys.walls) {
+    v.wall_material.push_back(w.material);
+    std::array<double, 3> n{0.0, 0.0, 0.0};
+    for (int k = 0; k < D; ++k) n[static_cast<std::size_t>(k)] = w.normal[k];
+    v.wall_normal.push_back(n);
+  }
+}
+
+SceneView view_scene(const Scene& scene, const EventLogHeader& h, const std::string& log) {
+  SceneView v;
+  v.path = scene.path;
+  v.tc = scene.tc;
+  std::visit([&](const auto& sys) { fill_view(v, sys, scene, h, log); }, scene.system);
+  return v;
+}
+
+struct Violation {
+  std::string check;
+  std::string detail;
+};
+
+bool all_finite(const EventRecord& r) {
+  if (!std::isfinite(r.time) || !std::isfinite(r.mi) || !std::isfinite(r.mj) || !std::isfinite(r.e))
+    return false;
+  for (const double* v : {r.normal, r.vi_before, r.vj_before, r.vi_after, r.vj_after, r.wi_before,
+                          r.wj_before, r.wi_after, r.wj_after})
+    for (int c = 0; c < 3; ++c)
+      if (!std::isfinite(v[c])) return false;
+  return true;
+}
+
+std::optional<Violation> check_record(const EventRecord& r, const EventLogHeader& h,
+                                      const SceneView* sv, double tol) {
+  const bool pair = is_pair(r.kind);
+  auto fail = [](std::string check, std::string detail) {
+    return std::optional<Violation>(Violation{std::move(check), std::move(detail)});
+  };
+  if (!all_finite(r)) return fail("finite values", "a field is NaN or infinite");
+  if (r.i >= h.particles || (pair && (r.j >= h.particles || r.j == r.i)))
+    return fail("particle index",
+                fmt::format("i = {}, j = {} in a log of {} particles", r.i, r.j, h.particles));
+  if (!pair && sv && r.j >= sv->wall_normal.size())
+    return fail("wall index", fmt::format("wall {} but the scene has {} walls", r.j, sv->wall_normal.size()));
+  const double ntol = std::max(tol, 1e-14);
+  const double nlen = norm3(r.normal);
+  if (!(std::abs(nlen - 1.0) <= ntol))
+    return fail("unit normal", fmt::format("|n| = {:.17g}", nlen));
+  if (!(r.mi > 0.0) || (pair && !(r.mj > 0.0)))
+    return fail("mass", fmt::format("mi = {:.17g}, mj = {:.17g}", r.mi, r.mj));
+  if (sv) {
+    const double m = sv->mass[r.i];
+    if (std::abs(r.mi - m) > tol * m)
+      return fail("mass", fmt::format("mi = {:.17g} but the scene gives particle {} mass {:.17g}", r.mi,
+                                      r.i, m));
+    if (pair && std::abs(r.mj - sv->mass[r.j]) > tol * sv->mass[r.j])
+      return fail("mass", fmt::format("mj = {:.17g} but the scene gives particle {} mass {:.17g}", r.mj,
+                                      r.j, sv->mass[r.j]));
+    if (!pair) {
+      const auto& wn = sv->wall_normal[r.j];
+      const double d[3] = {r.normal[0] - wn[0], r.normal[1] - wn[1], r.normal[2] - wn[2]};
+      if (norm3(d) > ntol)
+        return fail("wall normal", fmt::format("n = ({:.10g}, {:.10g}, {:.10g}) but wall {} has normal "
+                                               "({:.10g}, {:.10g}, {:.10g})",
+                                               r.normal[0], r.normal[1], r.normal[2], r.j, wn[0],
+                                               wn[1], wn[2]));
+    }
+  }
+  if (!(r.e >= 0.0 && r.e <= 1.0)) return fail("restitution", fmt::format("e = {:.17g} outside [0, 1]", r.e));
+
+  // Relative velocity (a wall is at rest: vj = 0 and mj is not used).
+  double gb[3], ga[3], dvi[3], dvj[3];
+  for (int c = 0; c < 3; ++c) {
+    const double vjb = pair ? r.vj_before[c] : 0.0, vja = pair ? r.vj_after[c] : 0.0;
+    gb[c] = r.vi_before[c] - vjb;
+    ga[c] = r.vi_after[c] - vja;
+    dvi[c] = r.vi_after[c] - r.vi_before[c];
+    dvj[c] = vja - vjb;
+  }
+  const double vib = norm3(r.vi_before), vjb = pair ? norm3(r.vj_before) : 0.0;
+  const double V = vib + vjb;  // velocity scale
+  const double ub = dot3(gb, r.normal), ua = dot3(ga, r.normal);
+  if (ub > tol * V)
+    return fail("approach", fmt::format("normal relative velocity before (vi - vj).n = {:.17g} > 0: the "
+                                        "particles were separating",
+                                        ub));
+
+  // Momentum: pair mi dvi + mj dvj = 0; wall: the impulse is along n (tangential velocity kept).
+  if (pair) {
+    double dp[3];
+    for (int c = 0; c < 3; ++c) dp[c] = r.mi * dvi[c] + r.mj * dvj[c];
+    const double P = r.mi * vib + r.mj * vjb;
+    const double res = norm3(dp);
+    if (!(res <= tol * P))
+      return fail("momentum", fmt::format("|mi dvi + mj dvj| = {:.6g} > tol x (mi |vi| + mj |vj|) = "
+                                          "{:.6g} x {:.6g} (relative {:.3g})",
+                                          res, tol, P, res / P));
+  } else {
+    const double dn = dot3(dvi, r.normal);
+    double dt[3];
+    for (int c = 0; c < 3; ++c) dt[c] = dvi[c] - dn * r.normal[c];
+    const double res = norm3(dt);
+    if (!(res <= tol * V))
+      return fail("momentum", fmt::format("wall collision changed the tangential velocity by {:.6g} > tol "
+                                          "x |vi| = {:.6g} x {:.6g} (relative {:.3g})",
+                                          res, tol, V, res / V));
+  }
+
+  // Normal relative velocity after = -e x before.
+  const double nres = std::abs(ua + r.e * ub);
+  if (!(nres <= tol * V))
+    return fail("normal velocity", fmt::format("(vi - vj).n after = {:.17g} but -e x before = {:.17g} "
+                                               "(e = {:.17g}; |diff| {:.3g} > tol x {:.6g})",
+                                               ua, -r.e * ub, r.e, nres, V));
+
+  // Tangential relative velocity unchanged.
+  double dtan[3];
+  for (int c = 0; c < 3; ++c) dtan[c] = (ga[c] - ua * r.normal[c]) - (gb[c] - ub * r.normal[c]);
+  const double tres = norm3(dtan);
+  if (!(tres <= tol * V))
+    return fail("tangential velocity",
+                fmt::format("tangential relative velocity changed by {:.6g} > tol x {:.6g} (relative {:.3g})",
+                            tres, V, tres / V));
+
+  // Smooth spheres: spins unchanged.
+  {
+    double di[3], dj[3];
+    for (int c = 0; c < 3; ++c) {
+      di[c] = r.wi_after[c] - r.wi_before[c];
+      dj[c] = pair ? r.wj_after[c] - r.wj_before[c] : 0.0;
+    }
+    const double W = norm3(r.wi_before) + (pair ? norm3(r.wj_before) : 0.0);
+    const double sres = std::max(norm3(di), norm3(dj));
+    if (!(sres <= tol * W))
+      return fail("spin", fmt::format("a spin changed by {:.6g} in a smooth collision (spin scale {:.6g})",
+                                      sres, W));
+  }
+
+  // Energy: KE lost = (1 - e^2) m* u_n^2 / 2.
+  {
+    const double ke_b = 0.5 * r.mi * dot3(r.vi_before, r.vi_before) +
+                        (pair ? 0.5 * r.mj * dot3(r.vj_before, r.vj_before) : 0.0);
+    const double ke_a = 0.5 * r.mi * dot3(r.vi_after, r.vi_after) +
+                        (pair ? 0.5 * r.mj * dot3(r.vj_after, r.vj_after) : 0.0);
+    const double mstar = pair ? r.mi * r.mj / (r.mi + r.mj) : r.mi;
+    const double expected = 0.5 * (1.0 - r.e * r.e) * mstar * ub * ub;
+    const double lost = ke_b - ke_a;
+    const double eres = std::abs(lost - expected);
+    if (!(eres <= tol * ke_b))
+      return fail("energy", fmt::format("kinetic energy lost {:.17g} but (1 - e^2) m* u_n^2 / 2 = {:.17g} "
+                                        "(|diff| {:.3g} > tol x KE {:.6g}; e = {:.17g}, m* = {:.17g}, u_n = {:.17g})",
+                                        lost, expected, eres, ke_b, r.e, mstar, -ub));
+  }
+
+  // The scene's restitution model at the impact speed (mixed as the engine does).
+  if (sv) {
+    const double u = -ub;
+    const int ma = sv->material[r.i];
+    const int mb = pair ? sv->material[r.j] : sv->wall_material[r.j];
+    const Restitution& ra = sv->materials[static_cast<std::size_t>(ma)].restitution;
+    const Restitution& rb = sv->materials[static_cast<std::size_t>(mb)].restitution;
+    const double model = ma == mb ? ra(u) : mixed_restitution(ra, rb, u);
+    const bool tc_elastic = sv->tc > 0.0 && r.e == 1.0;
+    if (!(std::abs(r.e - model) <= tol) && !tc_elastic) {
+      const std::string mats =
+          ma == mb ? fmt::format("the model of material '{}' gives", sv->materials[static_cast<std::size_t>(ma)].name)
+                   : fmt::format("the mean of the models of materials '{}' and '{}' gives",
+                                 sv->materials[static_cast<std::size_t>(ma)].name,
+                                 sv->materials[static_cast<std::size_t>(mb)].name);
+      return fail("restitution model",
+                  fmt::format("e = {:.17g} but at u_n = {:.17g} {} {:.17g} (|diff| {:.3g} > tol {:.3g}{})",
+                              r.e, u, mats, model, std::abs(r.e - model), tol,
+                              sv->tc > 0.0 ? "; e = 1 would be accepted under the TC model" : ""));
+    }
+  }
+  return std::nullopt;
+}
+
+}  // namespace
+
+VerifyResult verify_log(const std::string& path, const Scene* scene, double tol) {
+  if (!(tol >= 0.0)) throw std::invalid_argument(fmt::format("--tol must be >= 0 (got {})", tol));
+  check_not_directory(path);
+  EventLogReader reader(path);
+  const LogFile lf = check_size(path, reader);
+  std::optional<SceneView> sv;
+  if (scene) sv = view_scene(*scene, lf.header, path);
+
+  VerifyResult res;
+  res.model_checked = scene != nullptr;
+  EventRecord rec;
+  std::uint64_t index = 0;
+  while (reader.next(rec)) {
+    ++res.records;
+    if (!is_collision(rec.kind)) {
+      ++res.skipped;
+      ++index;
+      continue;
+    }
+    if (auto v = check_record(rec, lf.header, sv ? &*sv : nullptr, tol)) {
+      res.ok = false;
+      res.index = index;
+      res.offset = record_offset(index);
+      res.time = rec.time;
+      res.kind = rec.kind;
+      res.i = rec.i;
+      res.j = rec.j;
+      res.check = v->check;
+      res.detail = v->detail;
+      const std::string who =
+          is_pair(rec.kind) ? fmt::format("pair collision of particles {} and {}", rec.i, rec.j)
+                            : fmt::format("wall collision of particle {} with wall {}", rec.i, rec.j);
+      res.message = fmt::format("{}: record {} at byte offset {} (t = {:.17g}, {}) fails the {} check: {}",
+                                path, index, res.offset, rec.time, who, res.check, res.detail);
+      return res;
+    }
+    if (is_pair(rec.kind))
+      ++res.pair;
+    else
+      ++res.wall;
+    ++index;
+  }
+  return res;
+}
+
+}  // namespace matep

@@ -11,6 +11,7 @@
 
 #include "contact/hard.hpp"
 #include "contact/predict.hpp"
+#include "engine/huge_pages.hpp"
 #include "scheduler/calendar_queue.hpp"
 #include "scheduler/heap_queue.hpp"
 
@@ -84,9 +85,9 @@ class EdmEngine {
     build_cells(2.0 * rmax);
   }
 
-  template <class T>
-  static void release(std::vector<T>& v) {
-    std::vector<T>().swap(v);
+  template <class V>
+  static void release(V& v) {
+    V().swap(v);
   }
 
   double mass(int i) const {
@@ -261,9 +262,22 @@ class EdmEngine {
       const int lin = linear(c);
       const auto& offs = layer_axis < 0 ? offsets_all_ : offsets_layer_[2 * layer_axis + (layer_dir > 0)];
       const Vec<D> zero = Vec<D>::Zero();
+      // Collect first, prefetching each neighbour's state, then test: the misses of a large
+      // system overlap instead of following one another.
+      constexpr int kBuf = 128;
+      int buf[kBuf];
+      int n = 0;
       for (const int off : offs)
-        for (int j = head_[lin + off]; j >= 0; j = next_[j])
-          if (j != i) f(j, zero);
+        for (int j = head_[lin + off]; j >= 0; j = next_[j]) {
+          if (j == i) continue;
+          if (n < kBuf) {
+            __builtin_prefetch(&hot_[j]);
+            buf[n++] = j;
+          } else {
+            f(j, zero);
+          }
+        }
+      for (int m = 0; m < n; ++m) f(buf[m], zero);
       return;
     }
     std::array<int, 3> nk[D];
@@ -648,25 +662,27 @@ class EdmEngine {
   double window_ = 0.0;
   double now_ = 0.0;
 
-  std::vector<Hot<D>> hot_;
+  template <class T>
+  using Array = std::vector<T, HugePageAllocator<T>>;
+  Array<Hot<D>> hot_;
   std::vector<double> mass_factor_;  // per material: density * ball_volume(1)
-  std::vector<int> mat_;
-  std::vector<std::uint32_t> counter_;
-  std::vector<double> ev_t_, cross_t_;
-  std::vector<std::uint8_t> ev_type_, cross_aux_;
-  std::vector<int> ev_partner_;
-  std::vector<std::uint32_t> ev_pcount_;
-  std::vector<double> last_;
-  std::vector<int> rapid_;
+  Array<int> mat_;
+  Array<std::uint32_t> counter_;
+  Array<double> ev_t_, cross_t_;
+  Array<std::uint8_t> ev_type_, cross_aux_;
+  Array<int> ev_partner_;
+  Array<std::uint32_t> ev_pcount_;
+  Array<double> last_;
+  Array<int> rapid_;
 
   std::array<int, D> nc_{}, stride_{};
   Vec<D> cw_;
   int ncells_total_ = 0;
-  std::vector<int> head_, next_;
+  Array<int> head_, next_;
   std::vector<int> offsets_all_;
   std::array<std::vector<int>, 2 * D> offsets_layer_;
   static constexpr int ipow3(int d) { return d == 0 ? 1 : 3 * ipow3(d - 1); }
-  std::vector<std::array<int, D>> cell_;
+  Array<std::array<int, D>> cell_;
 
   EventCounts counts_;
   double virial_ = 0.0;

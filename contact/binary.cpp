@@ -1,5 +1,6 @@
 // Reference integrator for one soft collision; see binary.hpp for the scheme.
 #include "contact/binary.hpp"
+#include "contact/roots.hpp"
 
 #include <algorithm>
 #include <cmath>
@@ -120,27 +121,14 @@ class Collision {
   template <class Value>
   State<D> locate(const State<D>& s, double fa, State<D> ob, double fb, double h, bool close,
                   Value value) const {
-    double a = 0.0, b = h;
-    int side = 0;
-    for (int it = 0; it < 200 && b - a > 1e-14 * h; ++it) {
-      const double x = (a * fb - b * fa) / (fb - fa);
-      if (!(x > a && x < b)) break;
-      const State<D> ox = step(s, x, close);
-      const double fx = value(ox);
-      if (fx > 0.0) {
-        a = x;
-        fa = fx;
-        if (side == 1) fb *= 0.5;
-        side = 1;
-      } else {
-        b = x;
-        fb = fx;
-        ob = ox;
-        if (side == -1) fa *= 0.5;
-        side = -1;
-        if (fx == 0.0) break;
-      }
-    }
+    illinois_root(
+        [&](double x) {
+          const State<D> ox = step(s, x, close);
+          const double fx = value(ox);
+          if (fx <= 0.0) ob = ox;
+          return fx;
+        },
+        0.0, fa, h, fb, 1e-14 * h, 200);
     return ob;
   }
 

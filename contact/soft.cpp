@@ -1,5 +1,6 @@
 // Exact damping ratio of the clipped Hertz-Tsuji law; see soft.hpp.
 #include "contact/soft.hpp"
+#include "contact/roots.hpp"
 
 #include <array>
 #include <cmath>
@@ -78,25 +79,8 @@ double hertz_clipped_damping_ratio(double e) {
     b *= 2.0;
     fb = hertz_clipped_collision(b).e - e;
   }
-  int side = 0;
-  for (int it = 0; it < 100 && b - a > 1e-13 * b; ++it) {
-    const double x = (a * fb - b * fa) / (fb - fa);
-    const double fx = hertz_clipped_collision(x).e - e;
-    if (fx == 0.0) return x;
-    if (fx > 0.0) {
-      a = x;
-      fa = fx;
-      if (side == 1) fb *= 0.5;
-      side = 1;
-    } else {
-      b = x;
-      fb = fx;
-      if (side == -1) fa *= 0.5;
-      side = -1;
-    }
-    if (std::abs(fx) < 1e-13) return x;
-  }
-  return 0.5 * (a + b);
+  return illinois_root([&](double x) { return hertz_clipped_collision(x).e - e; }, a, fa, b, fb,
+                       1e-13 * b, 100, 1e-13);
 }
 
 }  // namespace matep

@@ -1,4 +1,5 @@
 #include "io/scene_csv.hpp"
+#include "io/text.hpp"
 
 #include <algorithm>
 #include <cerrno>
@@ -15,14 +16,6 @@
 namespace matep::scene_detail {
 
 namespace {
-
-std::string_view trim(std::string_view s) {
-  const auto ws = " \t\r\n";
-  const auto b = s.find_first_not_of(ws);
-  if (b == std::string_view::npos) return {};
-  const auto e = s.find_last_not_of(ws);
-  return s.substr(b, e - b + 1);
-}
 
 std::vector<std::string_view> split(std::string_view line) {
   std::vector<std::string_view> out;

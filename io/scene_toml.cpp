@@ -1,4 +1,5 @@
 #include "io/scene_toml.hpp"
+#include "io/text.hpp"
 
 #include <algorithm>
 #include <cmath>
@@ -54,14 +55,6 @@ void show_into(const toml::node& n, std::string& out) {
       break;
     }
   }
-}
-
-std::string_view trim(std::string_view s) {
-  const auto ws = " \t\r\n";
-  const auto b = s.find_first_not_of(ws);
-  if (b == std::string_view::npos) return {};
-  const auto e = s.find_last_not_of(ws);
-  return s.substr(b, e - b + 1);
 }
 
 std::size_t edit_distance(std::string_view a, std::string_view b) {

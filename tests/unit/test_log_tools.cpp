@@ -25,42 +25,17 @@
 #include "io/log_tools.hpp"
 #include "io/output.hpp"
 #include "io/scene.hpp"
+#include "tests/support/cli.hpp"
 
 namespace fs = std::filesystem;
 
 namespace {
 
-struct Result {
-  int code = -1;
-  std::string out;  // stdout and stderr together
-};
-
-Result sh(const std::string& args) {
-  const std::string cmd = std::string(MATEP_CLI) + " " + args + " 2>&1";
-  Result r;
-  FILE* p = popen(cmd.c_str(), "r");
-  std::array<char, 4096> buf;
-  while (p && std::fgets(buf.data(), buf.size(), p)) r.out += buf.data();
-  const int status = p ? pclose(p) : -1;
-  r.code = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
-  return r;
-}
-
-std::string slurp(const fs::path& p) {
-  std::ifstream f(p, std::ios::binary);
-  std::stringstream s;
-  s << f.rdbuf();
-  return s.str();
-}
-
-fs::path tmpdir(const std::string& name) {
-  const fs::path d = fs::temp_directory_path() / ("matep_log_" + name + "_" + std::to_string(::getpid()));
-  fs::remove_all(d);
-  fs::create_directories(d);
-  return d;
-}
-
-const std::string kCases = std::string(MATEP_SOURCE_DIR) + "/cases/";
+using Result = matep::test::CliResult;
+Result sh(const std::string& args) { return matep::test::run_cli(args); }
+using matep::test::slurp;
+fs::path tmpdir(const std::string& name) { return matep::test::fresh_dir("log_" + name); }
+const std::string& kCases = matep::test::kCasesDir;
 
 std::uint64_t summary_count(const fs::path& summary, const std::string& key) {
   const std::string s = slurp(summary);

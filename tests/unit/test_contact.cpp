@@ -9,18 +9,13 @@
 #include "contact/predict.hpp"
 #include "contact/restitution.hpp"
 #include "engine/vec.hpp"
+#include "tests/support/random.hpp"
 
 using namespace matep;
 
 namespace {
 
-template <int D>
-Vec<D> random_unit(std::mt19937_64& rng) {
-  std::normal_distribution<double> g;
-  Vec<D> v;
-  for (int k = 0; k < D; ++k) v[k] = g(rng);
-  return v.normalized();
-}
+using matep::test::random_unit;
 
 // Earlier root of |r + v t| = sigma in long double (the closed form, evaluated in extended
 // precision with the cancellation-free expression).

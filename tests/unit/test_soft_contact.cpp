@@ -13,6 +13,7 @@
 #include "contact/soft.hpp"
 #include "contact/timestep.hpp"
 #include "engine/vec.hpp"
+#include "tests/support/random.hpp"
 
 using namespace matep;
 
@@ -43,13 +44,7 @@ Vec<D> axis(int k) {
   return v;
 }
 
-template <int D>
-Vec<D> random_unit(std::mt19937_64& rng) {
-  std::normal_distribution<double> g;
-  Vec<D> v;
-  for (int k = 0; k < D; ++k) v[k] = g(rng);
-  return v.normalized();
-}
+using matep::test::random_unit;
 
 template <int D>
 Spin<D> random_spin(std::mt19937_64& rng, double scale) {

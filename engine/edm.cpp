@@ -347,7 +347,15 @@ class EdmEngine {
       const double lo = (c == 0) ? lo_[k] : lo_[k] + c * cw_[k];
       const double hi_face = (c == nc_[k] - 1) ? hi_[k] : lo_[k] + (c + 1) * cw_[k];
       bool up = false;
-      const double dt = slab_exit_time(h.x[k], h.v[k], g_[k], lo, hi_face, up);
+      double dt;
+      if (g_[k] == 0.0) {  // straight flight along this axis: the face ahead, never behind
+        const double vk = h.v[k];
+        up = vk > 0.0;
+        dt = vk > 0.0 ? (hi_face - h.x[k]) / vk : vk < 0.0 ? (lo - h.x[k]) / vk : kNever;
+        if (dt < 0.0) dt = 0.0;  // already past the face by round-off
+      } else {
+        dt = slab_exit_time(h.x[k], h.v[k], g_[k], lo, hi_face, up);
+      }
       if (dt < best) {
         best = dt;
         aux = static_cast<std::uint8_t>(2 * k + (up ? 1 : 0));

@@ -51,34 +51,26 @@ class EdmEngine {
     L_ = hi_ - lo_;
     window_ = set.collapse_window > 0.0 ? set.collapse_window : 1e-9 * set.end_time;
 
+    // Copy the input into the engine's arrays one array at a time, releasing each input array
+    // as soon as it is copied (peak memory).
     hot_.resize(N_);
-    mat_.resize(N_);
     double rmax = 0.0;
     for (int i = 0; i < N_; ++i) {
       hot_[i].x = sys.x[i];
       hot_[i].v = sys.v[i];
       hot_[i].t = 0.0;
       hot_[i].R = sys.radius[i];
-      mat_[i] = sys.material[i];
       rmax = std::max(rmax, sys.radius[i]);
     }
-    // m = density * ball volume (System::mass), as a per-material factor times R^D.
-    for (const auto& mat : sys_.materials) mass_factor_.push_back(mat.density * ball_volume<D>(1.0));
-    // The engine's own arrays hold the particle state from here on.
     release(sys_.x);
     release(sys_.v);
     release(sys_.radius);
+    cold_.resize(N_);
+    for (int i = 0; i < N_; ++i) cold_[i].mat = sys.material[i];
     release(sys_.material);
-    // Scheduling state, allocated after the input arrays are gone (peak memory).
-    counter_.assign(N_, 0);
-    ev_t_.assign(N_, kNever);
-    ev_type_.assign(N_, kNone);
-    cross_t_.assign(N_, kNever);
-    cross_aux_.assign(N_, 0);
-    ev_partner_.assign(N_, -1);
-    ev_pcount_.assign(N_, 0);
-    last_.assign(N_, -kNever);
-    rapid_.assign(N_, 0);
+    // m = density * ball volume (System::mass), as a per-material factor times R^D.
+    for (const auto& mat : sys_.materials) mass_factor_.push_back(mat.density * ball_volume<D>(1.0));
+    // The queue is allocated after the input arrays are gone (peak memory).
     queue_.emplace(static_cast<std::size_t>(N_) + 2);
     all_elastic_ = true;
     for (const auto& mat : sys.materials) all_elastic_ = all_elastic_ && mat.restitution.is_elastic();
@@ -92,7 +84,7 @@ class EdmEngine {
 
   double mass(int i) const {
     const double R = hot_[i].R;
-    return D == 3 ? mass_factor_[mat_[i]] * R * R * R : mass_factor_[mat_[i]] * R * R;
+    return D == 3 ? mass_factor_[cold_[i].mat] * R * R * R : mass_factor_[cold_[i].mat] * R * R;
   }
 
   RunResult<D> run() {
@@ -148,16 +140,7 @@ class EdmEngine {
     queue_.reset();
     release(head_);
     release(next_);
-    release(cell_);
-    release(counter_);
-    release(ev_t_);
-    release(cross_t_);
-    release(ev_type_);
-    release(cross_aux_);
-    release(ev_partner_);
-    release(ev_pcount_);
-    release(last_);
-    release(rapid_);
+    release(cold_);
     res.x.resize(N_);
     res.v.resize(N_);
     res.radius.resize(N_);
@@ -222,11 +205,10 @@ class EdmEngine {
     }
     head_.assign(ncells_total_, -1);
     next_.assign(N_, -1);
-    cell_.resize(N_);
     for (int i = 0; i < N_; ++i) {
       for (int k = 0; k < D; ++k) {
         int c = static_cast<int>(std::floor((hot_[i].x[k] - lo_[k]) / cw_[k]));
-        cell_[i][k] = std::clamp(c, 0, nc_[k] - 1);
+        cold_[i].cell[k] = std::clamp(c, 0, nc_[k] - 1);
       }
       cell_insert(i);
     }
@@ -237,13 +219,13 @@ class EdmEngine {
     return l;
   }
   void cell_insert(int i) {
-    const int l = linear(cell_[i]);
+    const int l = linear(cold_[i].cell);
     next_[i] = head_[l];
     head_[l] = i;
   }
   void cell_remove(int i) {
     // Cells hold a particle or two: walking the list is cheaper than a back link per particle.
-    int* link = &head_[linear(cell_[i])];
+    int* link = &head_[linear(cold_[i].cell)];
     while (*link != i) link = &next_[*link];
     *link = next_[i];
   }
@@ -254,7 +236,7 @@ class EdmEngine {
   // after a cell crossing).
   template <class F>
   void for_neighbours(int i, F&& f, int layer_axis = -1, int layer_dir = 0) const {
-    const std::array<int, D> c = cell_[i];
+    const std::array<int, D> c = cold_[i].cell;
     // Fast path: a cell away from the grid's faces has its neighbours at fixed linear offsets.
     bool interior = true;
     for (int k = 0; k < D; ++k) interior = interior && c[k] >= 1 && c[k] < nc_[k] - 1;
@@ -343,7 +325,7 @@ class EdmEngine {
     double best = kNever;
     std::uint8_t aux = 0;
     for (int k = 0; k < D; ++k) {
-      const int c = cell_[i][k];
+      const int c = cold_[i].cell[k];
       const double lo = (c == 0) ? lo_[k] : lo_[k] + c * cw_[k];
       const double hi_face = (c == nc_[k] - 1) ? hi_[k] : lo_[k] + (c + 1) * cw_[k];
       bool up = false;
@@ -361,8 +343,8 @@ class EdmEngine {
         aux = static_cast<std::uint8_t>(2 * k + (up ? 1 : 0));
       }
     }
-    cross_t_[i] = now + best;
-    cross_aux_[i] = aux;
+    cold_[i].cross_t = now + best;
+    cold_[i].aux = aux;
   }
 
   // Tests the neighbours of i (all, or one layer) and keeps the earliest pair event if it beats
@@ -393,7 +375,7 @@ class EdmEngine {
         layer_axis, layer_dir);
   }
 
-  void schedule(int i) { queue_->set(i, std::min(ev_t_[i], cross_t_[i])); }
+  void schedule(int i) { queue_->set(i, std::min(cold_[i].ev_t, cold_[i].cross_t)); }
 
   // Full prediction for particle i, which must be at time `now`: crossing, walls, all pairs.
   void predict(int i, double now) {
@@ -412,10 +394,10 @@ class EdmEngine {
       }
     }
     test_pairs(i, now, best, type, partner);
-    ev_t_[i] = now + best;
-    ev_type_[i] = type;
-    ev_partner_[i] = partner;
-    if (type == kPair) ev_pcount_[i] = counter_[partner];
+    cold_[i].ev_t = now + best;
+    cold_[i].type = type;
+    cold_[i].partner = partner;
+    if (type == kPair) cold_[i].pcount = cold_[partner].counter;
     schedule(i);
   }
 
@@ -426,17 +408,17 @@ class EdmEngine {
   // by that particle.
   void predict_after_crossing(int i, double now, int axis, int dir) {
     predict_crossing(i, now);
-    const double stored = ev_t_[i] - now;
+    const double stored = cold_[i].ev_t - now;
     double best = stored;
-    std::uint8_t type = ev_type_[i];
-    int partner = ev_partner_[i];
+    std::uint8_t type = cold_[i].type;
+    int partner = cold_[i].partner;
     test_pairs(i, now, best, type, partner, axis, dir);
     // Note the new partner may be the stored one with a new time (a stale event with it).
     if (best < stored) {
-      ev_partner_[i] = partner;
-      ev_type_[i] = type;
-      ev_pcount_[i] = counter_[partner];
-      ev_t_[i] = now + best;
+      cold_[i].partner = partner;
+      cold_[i].type = type;
+      cold_[i].pcount = cold_[partner].counter;
+      cold_[i].ev_t = now + best;
     }
     schedule(i);
   }
@@ -449,28 +431,28 @@ class EdmEngine {
 
   // Collapse detector and TC bookkeeping for a particle that just collided at `now`.
   void note_collision(int i) {
-    if (now_ - last_[i] < window_) {
-      if (++rapid_[i] >= set_.collapse_count && status_.empty()) {
+    if (now_ - cold_[i].last < window_) {
+      if (++cold_[i].rapid >= set_.collapse_count && status_.empty()) {
         status_ = "collapse";
         message_ = fmt::format(
             "inelastic collapse: particle {} had {} consecutive collisions less than {:.3g} "
             "apart, at t = {:.17g}; set run.tc > 0 (TC model) to make such collisions elastic",
-            i, rapid_[i], window_, now_);
+            i, cold_[i].rapid, window_, now_);
       }
     } else {
-      rapid_[i] = 0;
+      cold_[i].rapid = 0;
     }
-    last_[i] = now_;
+    cold_[i].last = now_;
   }
 
   void handle(int i, double t) {
-    if (cross_t_[i] <= ev_t_[i]) {
+    if (cold_[i].cross_t <= cold_[i].ev_t) {
       advance(i, t);
       ++counts_.cell;
-      const int k = cross_aux_[i] / 2;
-      const bool up = cross_aux_[i] & 1;
+      const int k = cold_[i].aux / 2;
+      const bool up = cold_[i].aux & 1;
       cell_remove(i);
-      int c = cell_[i][k] + (up ? 1 : -1);
+      int c = cold_[i].cell[k] + (up ? 1 : -1);
       if (c < 0 || c >= nc_[k]) {
         if (!sys_.periodic[k]) {
           cell_insert(i);
@@ -484,16 +466,16 @@ class EdmEngine {
         c = up ? 0 : nc_[k] - 1;
         hot_[i].x[k] += up ? -L_[k] : L_[k];
       }
-      cell_[i][k] = c;
+      cold_[i].cell[k] = c;
       cell_insert(i);
       predict_after_crossing(i, t, k, up ? 1 : -1);
       return;
     }
-    switch (ev_type_[i]) {
+    switch (cold_[i].type) {
       case kPair: {
-        const int j = ev_partner_[i];
+        const int j = cold_[i].partner;
         advance(i, t);
-        if (counter_[j] != ev_pcount_[i]) {  // partner changed course: re-predict
+        if (cold_[j].counter != cold_[i].pcount) {  // partner changed course: re-predict
           ++counts_.stale;
           predict(i, t);
           return;
@@ -506,7 +488,7 @@ class EdmEngine {
       }
       case kWall: {
         advance(i, t);
-        collide_wall(i, ev_partner_[i]);
+        collide_wall(i, cold_[i].partner);
         predict(i, t);
         return;
       }
@@ -530,8 +512,8 @@ class EdmEngine {
     const Vec<D> n = r / dist;
     const double u = (a.v - b.v).dot(n);
     if (!(u < 0.0)) return;  // receding at contact (round-off): no collision
-    double e = all_elastic_ ? 1.0 : restitution(mat_[i], mat_[j], -u);
-    if (set_.tc > 0.0 && (now_ - last_[i] < set_.tc || now_ - last_[j] < set_.tc)) e = 1.0;
+    double e = all_elastic_ ? 1.0 : restitution(cold_[i].mat, cold_[j].mat, -u);
+    if (set_.tc > 0.0 && (now_ - cold_[i].last < set_.tc || now_ - cold_[j].last < set_.tc)) e = 1.0;
     CollisionRecord<D> rec;
     const bool log = !collision_observers_.empty();
     if (log) {
@@ -540,8 +522,8 @@ class EdmEngine {
     }
     const double J = smooth_pair_collision(a.v, b.v, mass(i), mass(j), n, e);
     virial_ += J * dist;  // r_ij . dp_i with dp_i = J n
-    ++counter_[i];
-    ++counter_[j];
+    ++cold_[i].counter;
+    ++cold_[j].counter;
     ++counts_.pair;
     note_collision(i);
     note_collision(j);
@@ -572,13 +554,13 @@ class EdmEngine {
       note_collision(i);
       return;
     }
-    double e = restitution(mat_[i], wall.material, -u);
-    if (set_.tc > 0.0 && now_ - last_[i] < set_.tc) e = 1.0;
+    double e = restitution(cold_[i].mat, wall.material, -u);
+    if (set_.tc > 0.0 && now_ - cold_[i].last < set_.tc) e = 1.0;
     CollisionRecord<D> rec;
     const bool log = !collision_observers_.empty();
     if (log) rec.vi_before = a.v;
     smooth_wall_collision(a.v, mass(i), wall.normal, e);
-    ++counter_[i];
+    ++cold_[i].counter;
     ++counts_.wall;
     note_collision(i);
     if (log) {
@@ -674,14 +656,22 @@ class EdmEngine {
   using Array = std::vector<T, HugePageAllocator<T>>;
   Array<Hot<D>> hot_;
   std::vector<double> mass_factor_;  // per material: density * ball_volume(1)
-  Array<int> mat_;
-  Array<std::uint32_t> counter_;
-  Array<double> ev_t_, cross_t_;
-  Array<std::uint8_t> ev_type_, cross_aux_;
-  Array<int> ev_partner_;
-  Array<std::uint32_t> ev_pcount_;
-  Array<double> last_;
-  Array<int> rapid_;
+  // Everything else the event loop reads or writes about a particle, in one cache line, so that
+  // handling an event touches two lines per particle however large the system.
+  struct alignas(D == 3 ? 64 : 8) Cold {
+    double ev_t = kNever;     // earliest pair or wall event (absolute time)
+    double cross_t = kNever;  // next cell crossing (absolute time)
+    double last = -kNever;    // time of the last collision (TC model, collapse detector)
+    int partner = -1;         // pair partner or wall index of ev_t
+    std::uint32_t pcount = 0; // partner's collision counter when predicted
+    std::uint32_t counter = 0;// own collision counter
+    int rapid = 0;            // consecutive rapid collisions (collapse detector)
+    std::array<int, D> cell{};
+    int mat = 0;
+    std::uint8_t type = kNone;  // kind of ev_t
+    std::uint8_t aux = 0;       // crossing: 2 * axis + up
+  };
+  Array<Cold> cold_;
 
   std::array<int, D> nc_{}, stride_{};
   Vec<D> cw_;
@@ -690,7 +680,6 @@ class EdmEngine {
   std::vector<int> offsets_all_;
   std::array<std::vector<int>, 2 * D> offsets_layer_;
   static constexpr int ipow3(int d) { return d == 0 ? 1 : 3 * ipow3(d - 1); }
-  Array<std::array<int, D>> cell_;
 
   EventCounts counts_;
   double virial_ = 0.0;

@@ -76,7 +76,6 @@ struct EdmSettings {
   // each within collapse_window of the previous one, stops the run with status "collapse".
   int collapse_count = 1000;
   double collapse_window = 0.0;   // 0 = 1e-9 * end_time
-  bool log_events = false;
 };
 
 }  // namespace matep

@@ -21,7 +21,6 @@ EdmSettings edm_settings(const Scene& s) {
   if (s.max_events > 0) e.max_events = s.max_events;
   e.collapse_count = s.collapse_count;
   e.collapse_window = s.collapse_window;
-  e.log_events = s.output.events;
   return e;
 }
 

@@ -2,6 +2,7 @@
 
 #include <fmt/format.h>
 
+#include <algorithm>
 #include <cmath>
 #include <filesystem>
 #include <numbers>
@@ -36,6 +37,22 @@ class ProgressObserver final : public Observer<2>, public Observer<3> {
   double end_;
 };
 
+// Checks what the scene reader cannot know about the engine: the cell grid needs three cells
+// of at least one largest diameter along a periodic axis (otherwise a particle would meet two
+// images of the same neighbour). Called by run before anything is written, and by check.
+template <int D>
+void check_runnable(const Scene& scene, const System<D>& sys) {
+  double dmax = 0.0;
+  for (double r : sys.radius) dmax = std::max(dmax, 2.0 * r);
+  for (int k = 0; k < D; ++k) {
+    const double L = sys.upper[k] - sys.lower[k];
+    if (sys.periodic[k] && L < 3.0 * dmax)
+      throw SceneError(fmt::format("{}: domain.upper: periodic axis {} is {} long, shorter than three "
+                                   "largest particle diameters ({}); enlarge the domain (got [{}])",
+                                   scene.path, "xyz"[k], L, 3.0 * dmax, fmt::join(sys.upper, ", ")));
+  }
+}
+
 template <int D>
 RunOutcome run_system(const Scene& scene, const System<D>& sys, const std::string& dir,
                       const ProgressFn& progress) {
@@ -43,6 +60,7 @@ RunOutcome run_system(const Scene& scene, const System<D>& sys, const std::strin
     throw SceneError(fmt::format("{}: run.method: \"{}\" is not available in this version of matep "
                                  "(available: \"edm\")",
                                  scene.path, scene.method));
+  check_runnable(scene, sys);
   std::filesystem::create_directories(dir);
   const EdmSettings settings = edm_settings(scene);
   ThermoCsvWriter thermo(dir + "/thermo.csv");
@@ -99,6 +117,7 @@ std::string restitution_text(const Restitution& r) {
 
 template <int D>
 std::string describe(const Scene& scene, const System<D>& sys) {
+  check_runnable(scene, sys);
   std::string s;
   s += fmt::format("scene        {}\n", scene.path);
   s += fmt::format("dimension    {} ({})\n", D, D == 3 ? "spheres" : "disks");

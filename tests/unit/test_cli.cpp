@@ -159,3 +159,19 @@ TEST(Cli, TruncatedEventLogIsReportedWithItsByteOffset) {
   }
   fs::remove_all(d);
 }
+
+TEST(Cli, PeriodicAxisTooShortIsRefusedBeforeAnythingIsWritten) {
+  const fs::path d = tmpdir("short");
+  const fs::path scene = d / "short.toml";
+  {
+    std::ofstream f(scene);
+    f << "[run]\ndimension = 2\nend_time = 1.0\n[domain]\nlower = [0.0, 0.0]\nupper = [2.5, 10.0]\n"
+         "periodic = [true, false]\n[material.m]\ndensity = 1.0\n[particles.p]\nmaterial = \"m\"\n"
+         "radius = 0.5\ncount = 1\nvelocity = [1.0, 0.0]\nregion = {lower = [0.0, 4.0], upper = [2.5, 6.0]}\n";
+  }
+  const Result r = sh("run " + scene.string() + " --out " + (d / "o").string());
+  EXPECT_EQ(r.code, 2);
+  EXPECT_NE(r.out.find("short.toml: domain.upper: periodic axis x is 2.5 long"), std::string::npos) << r.out;
+  EXPECT_FALSE(fs::exists(d / "o"));
+  fs::remove_all(d);
+}

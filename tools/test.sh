@@ -6,6 +6,6 @@ cd "$(dirname "$0")/.."
 tools/install-deps.sh
 dir=build; flags=(-DCMAKE_BUILD_TYPE=Release)
 if [ "${MATEP_SANITIZE:-0}" = 1 ]; then dir=build-asan; flags=(-DCMAKE_BUILD_TYPE=RelWithDebInfo -DMATEP_SANITIZE=ON); fi
-cmake -S . -B "$dir" "${flags[@]}" -DMATEP_BUILD_BENCH=OFF >/dev/null
+cmake -S . -B "$dir" "${flags[@]}" -DMATEP_BUILD_TESTS=ON >/dev/null
 cmake --build "$dir" -j"$(nproc)"
-ctest --test-dir "$dir" -j"$(nproc)" --output-on-failure
+ctest --test-dir "$dir" -j"$(nproc)" --output-on-failure --no-tests=error

@@ -123,6 +123,14 @@ class EdmEngine {
       }
       if ((processed & 0x3fff) == 0)
         for (auto* o : observers_) o->on_progress(t, processed);
+      // Start fetching the next event's particle while this one is handled (large systems).
+      if (!queue_->empty()) {
+        const int next_id = queue_->top().first;
+        if (next_id < N_) {
+          __builtin_prefetch(&hot_[next_id]);
+          __builtin_prefetch(&cold_[next_id]);
+        }
+      }
       handle(id, t);
       if (!status_.empty()) break;
     }

@@ -71,7 +71,7 @@ class EdmEngine {
     // m = density * ball volume (System::mass), as a per-material factor times R^D.
     for (const auto& mat : sys_.materials) mass_factor_.push_back(mat.density * ball_volume<D>(1.0));
     // The queue is allocated after the input arrays are gone (peak memory).
-    queue_.emplace(static_cast<std::size_t>(N_) + 2);
+    queue_.emplace(static_cast<std::size_t>(N_) + 3);  // particles + sampler, end, snapshots
     all_elastic_ = true;
     for (const auto& mat : sys.materials) all_elastic_ = all_elastic_ && mat.restitution.is_elastic();
     build_cells(2.0 * rmax);
@@ -90,12 +90,21 @@ class EdmEngine {
   RunResult<D> run() {
     const auto wall0 = std::chrono::steady_clock::now();
     // System events: one id for the thermo sampler, one for the end of the run.
-    const int sample_id = N_, end_id = N_ + 1;
+    const int sample_id = N_, end_id = N_ + 1, snapshot_id = N_ + 2;
     emit_sample(0.0, /*interval=*/0.0);
     for (int i = 0; i < N_; ++i) predict(i, 0.0);
     if (set_.thermo_interval > 0.0 && set_.thermo_interval < set_.end_time * (1.0 - 1e-12))
       queue_->set(sample_id, set_.thermo_interval);
     queue_->set(end_id, set_.end_time);
+    for (auto* o : observers_)
+      if (o->wants_snapshots()) snapshot_observers_.push_back(o);
+    const bool snapshots = set_.snapshot_interval > 0.0 && !snapshot_observers_.empty();
+    if (snapshots) {
+      emit_snapshot(0.0);
+      if (set_.snapshot_interval < set_.end_time * (1.0 - 1e-12)) queue_->set(snapshot_id, set_.snapshot_interval);
+    }
+    std::uint64_t snapshot_k = 1;
+    double last_snapshot_time = 0.0;
     std::uint64_t sample_k = 1;
     double last_sample_time = 0.0;
 
@@ -113,6 +122,14 @@ class EdmEngine {
         const double next = static_cast<double>(sample_k) * set_.thermo_interval;
         // The end of the run writes its own row; skip a sample that would fall on it.
         if (next < set_.end_time * (1.0 - 1e-12)) queue_->set(sample_id, next);
+        continue;
+      }
+      if (id == snapshot_id) {
+        emit_snapshot(t);
+        last_snapshot_time = t;
+        ++snapshot_k;
+        const double next = static_cast<double>(snapshot_k) * set_.snapshot_interval;
+        if (next < set_.end_time * (1.0 - 1e-12)) queue_->set(snapshot_id, next);
         continue;
       }
       if (processed++ >= set_.max_events) {
@@ -138,6 +155,7 @@ class EdmEngine {
     const double t_end = status_.empty() ? set_.end_time : now_;
     for (int i = 0; i < N_; ++i) advance(i, t_end);
     if (t_end > last_sample_time || counts_.samples == 1) emit_sample(t_end, t_end - last_sample_time);
+    if (snapshots && t_end > last_snapshot_time) emit_snapshot(t_end);
 
     res.status = status_.empty() ? "ok" : status_;
     res.message = message_;
@@ -591,6 +609,24 @@ class EdmEngine {
     if (j >= 0) rec.wj_before = rec.wj_after = sys_.w[j];
   }
 
+  // All particles at time t (moved virtually, stored state untouched).
+  void emit_snapshot(double t) {
+    Snapshot<D> snap;
+    snap.time = t;
+    snap.x.resize(N_);
+    snap.v.resize(N_);
+    snap.radius.resize(N_);
+    for (int i = 0; i < N_; ++i) {
+      const Hot<D>& h = hot_[i];
+      const double dt = t - h.t;
+      snap.x[i] = h.x + h.v * dt + (0.5 * dt * dt) * g_;
+      snap.v[i] = h.v + g_ * dt;
+      snap.radius[i] = h.R;
+    }
+    snap.w = sys_.w;
+    for (auto* o : snapshot_observers_) o->on_snapshot(snap);
+  }
+
   void emit_sample(double t, double interval) {
     ++counts_.samples;
     if (observers_.empty()) {
@@ -654,7 +690,7 @@ class EdmEngine {
   EdmSettings set_;
   int N_;
   std::optional<Queue> queue_;  // built once the input arrays are released
-  std::vector<Observer<D>*> observers_, collision_observers_;
+  std::vector<Observer<D>*> observers_, collision_observers_, snapshot_observers_;
   Vec<D> g_, lo_, hi_, L_;
   bool gravity_ = false, all_elastic_ = false;
   double window_ = 0.0;

@@ -3,6 +3,7 @@
 #pragma once
 
 #include <cstdint>
+#include <vector>
 
 #include "engine/vec.hpp"
 
@@ -43,6 +44,15 @@ struct ThermoSample {
   double pressure = 0.0;          // kinetic + collisional virial over the last interval
 };
 
+// The state of every particle at one time, in particle-id order (a snapshot).
+template <int D>
+struct Snapshot {
+  double time = 0.0;
+  std::vector<Vec<D>> x, v;
+  std::vector<Spin<D>> w;  // empty when the system has no spins
+  std::vector<double> radius;
+};
+
 template <int D>
 class Observer {
  public:
@@ -50,6 +60,8 @@ class Observer {
   virtual bool wants_collisions() const { return false; }
   virtual void on_collision(const CollisionRecord<D>&) {}
   virtual void on_sample(const ThermoSample&) {}
+  virtual bool wants_snapshots() const { return false; }
+  virtual void on_snapshot(const Snapshot<D>&) {}
   // Called every few thousand events with the simulated time and the events so far.
   virtual void on_progress(double /*time*/, std::uint64_t /*events*/) {}
 };

@@ -71,6 +71,7 @@ struct EdmSettings {
   double end_time = 1.0;
   double tc = 0.0;                // TC model (Luding & McNamara 1998); 0 = off
   double thermo_interval = 0.0;   // 0 = only t = 0 and end
+  double snapshot_interval = 0.0; // 0 = none; else snapshots at t = 0, every interval and the end
   std::uint64_t max_events = std::numeric_limits<std::uint64_t>::max();
   // Inelastic-collapse detector: a particle that has collapse_count consecutive collisions,
   // each within collapse_window of the previous one, stops the run with status "collapse".

@@ -5,6 +5,7 @@
 #include <cerrno>
 #include <cmath>
 #include <cstring>
+#include <filesystem>
 
 namespace matep {
 
@@ -228,6 +229,72 @@ void ThermoCsvWriter::on_sample(const ThermoSample& s) {
              s.rotational_energy, s.potential_energy, s.temperature, s.collisions, s.pressure);
   std::fflush(f_);  // a run that stops early keeps every row written so far
 }
+
+// ---- VTK snapshots ---------------------------------------------------------------------------
+
+template <int D>
+VtkSnapshotWriter<D>::VtkSnapshotWriter(const std::string& dir) : dir_(dir) {
+  std::filesystem::create_directories(dir_ + "/snapshots");
+}
+
+template <int D>
+void VtkSnapshotWriter<D>::on_snapshot(const Snapshot<D>& snap) {
+  const std::string rel = fmt::format("snapshots/snap_{:06d}.vtp", written_.size());
+  const std::string path = dir_ + "/" + rel;
+  std::FILE* f = open_or_throw(path, "w");
+  const std::size_t n = snap.x.size();
+  auto vec3 = [&](const char* name, auto get) {
+    fmt::print(f, "        <DataArray type=\"Float64\" Name=\"{}\" NumberOfComponents=\"3\" format=\"ascii\">\n", name);
+    double c[3];
+    for (std::size_t i = 0; i < n; ++i) {
+      get(i, c);
+      fmt::print(f, "{:.17g} {:.17g} {:.17g}\n", c[0], c[1], c[2]);
+    }
+    fmt::print(f, "        </DataArray>\n");
+  };
+  fmt::print(f, "<?xml version=\"1.0\"?>\n<VTKFile type=\"PolyData\" version=\"0.1\" byte_order=\"LittleEndian\">\n"
+                "  <PolyData>\n    <Piece NumberOfPoints=\"{0}\" NumberOfVerts=\"{0}\" NumberOfLines=\"0\" "
+                "NumberOfStrips=\"0\" NumberOfPolys=\"0\">\n      <Points>\n", n);
+  vec3("position", [&](std::size_t i, double* c) { to3<D>(snap.x[i], c); });
+  fmt::print(f, "      </Points>\n      <PointData Scalars=\"radius\" Vectors=\"velocity\">\n");
+  fmt::print(f, "        <DataArray type=\"Float64\" Name=\"radius\" format=\"ascii\">\n");
+  for (std::size_t i = 0; i < n; ++i) fmt::print(f, "{:.17g}\n", snap.radius[i]);
+  fmt::print(f, "        </DataArray>\n");
+  vec3("velocity", [&](std::size_t i, double* c) { to3<D>(snap.v[i], c); });
+  vec3("angular_velocity", [&](std::size_t i, double* c) {
+    if (snap.w.empty()) c[0] = c[1] = c[2] = 0.0;
+    else spin3<D>(snap.w[i], c);
+  });
+  fmt::print(f, "        <DataArray type=\"Int32\" Name=\"id\" format=\"ascii\">\n");
+  for (std::size_t i = 0; i < n; ++i) fmt::print(f, "{}\n", i);
+  fmt::print(f, "        </DataArray>\n");
+  // Every particle of an event-driven run is hard and in no soft cluster.
+  fmt::print(f, "        <DataArray type=\"UInt8\" Name=\"mode\" format=\"ascii\">\n");
+  for (std::size_t i = 0; i < n; ++i) std::fputs("0\n", f);
+  fmt::print(f, "        </DataArray>\n        <DataArray type=\"Int32\" Name=\"cluster\" format=\"ascii\">\n");
+  for (std::size_t i = 0; i < n; ++i) std::fputs("-1\n", f);
+  fmt::print(f, "        </DataArray>\n      </PointData>\n      <Verts>\n"
+                "        <DataArray type=\"Int32\" Name=\"connectivity\" format=\"ascii\">\n");
+  for (std::size_t i = 0; i < n; ++i) fmt::print(f, "{}\n", i);
+  fmt::print(f, "        </DataArray>\n        <DataArray type=\"Int32\" Name=\"offsets\" format=\"ascii\">\n");
+  for (std::size_t i = 0; i < n; ++i) fmt::print(f, "{}\n", i + 1);
+  fmt::print(f, "        </DataArray>\n      </Verts>\n    </Piece>\n  </PolyData>\n</VTKFile>\n");
+  std::fclose(f);
+  written_.emplace_back(snap.time, rel);
+  // The collection is rewritten whole (to a temporary, then renamed) after every snapshot.
+  const std::string pvd = dir_ + "/snapshots.pvd", tmp = pvd + ".tmp";
+  std::FILE* c = open_or_throw(tmp, "w");
+  fmt::print(c, "<?xml version=\"1.0\"?>\n<VTKFile type=\"Collection\" version=\"0.1\" byte_order=\"LittleEndian\">\n"
+                "  <Collection>\n");
+  for (const auto& [t, file] : written_)
+    fmt::print(c, "    <DataSet timestep=\"{:.17g}\" group=\"\" part=\"0\" file=\"{}\"/>\n", t, file);
+  fmt::print(c, "  </Collection>\n</VTKFile>\n");
+  std::fclose(c);
+  std::filesystem::rename(tmp, pvd);
+}
+
+template class VtkSnapshotWriter<2>;
+template class VtkSnapshotWriter<3>;
 
 // ---- final_state.csv --------------------------------------------------------------------------
 

@@ -92,6 +92,22 @@ class ThermoCsvWriter final : public Observer<2>, public Observer<3> {
   std::FILE* f_ = nullptr;
 };
 
+// VTK XML PolyData snapshots for ParaView: DIR/snapshots/snap_NNNNNN.vtp (points with radius,
+// velocity, angular_velocity, id, mode 0 = hard / 1 = soft, cluster -1 = none) and the time
+// series DIR/snapshots.pvd, rewritten after every snapshot so that it is complete whenever a run
+// stops.
+template <int D>
+class VtkSnapshotWriter final : public Observer<D> {
+ public:
+  explicit VtkSnapshotWriter(const std::string& dir);
+  bool wants_snapshots() const override { return true; }
+  void on_snapshot(const Snapshot<D>& snap) override;
+
+ private:
+  std::string dir_;
+  std::vector<std::pair<double, std::string>> written_;  // (time, file relative to dir_)
+};
+
 template <int D>
 void write_final_state(const std::string& path, const RunResult<D>& result);
 

@@ -19,6 +19,7 @@ EdmSettings edm_settings(const Scene& s) {
   e.end_time = s.end_time;
   e.tc = s.tc;
   e.thermo_interval = s.output.thermo_interval;
+  e.snapshot_interval = s.output.snapshot_interval;
   if (s.max_events > 0) e.max_events = s.max_events;
   e.collapse_count = s.collapse_count;
   e.collapse_window = s.collapse_window;
@@ -69,6 +70,11 @@ RunOutcome run_system(const Scene& scene, const System<D>& sys, const std::strin
   if (scene.output.events) {
     log = std::make_unique<EventLogWriter<D>>(dir + "/events.bin", sys.size());
     observers.push_back(log.get());
+  }
+  std::unique_ptr<VtkSnapshotWriter<D>> vtk;
+  if (scene.output.snapshot_interval > 0.0) {
+    vtk = std::make_unique<VtkSnapshotWriter<D>>(dir);
+    observers.push_back(vtk.get());
   }
   std::unique_ptr<ProgressObserver> prog;
   if (progress) {
@@ -173,7 +179,10 @@ std::string describe(const Scene& scene, const System<D>& sys) {
                    scene.output.thermo_interval > 0.0
                        ? fmt::format(" (every {})", scene.output.thermo_interval)
                        : std::string(" (t = 0 and end)"),
-                   scene.output.events ? " events.bin" : "");
+                   scene.output.events ? " events.bin" : "") +
+       (scene.output.snapshot_interval > 0.0
+            ? fmt::format("             snapshots.pvd + snapshots/*.vtp every {}\n", scene.output.snapshot_interval)
+            : std::string());
   return s;
 }
 

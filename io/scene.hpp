@@ -23,7 +23,7 @@ struct OutputSpec {
   std::string dir = "out";         // relative paths resolve against the current directory
   double thermo_interval = 0.0;    // 0 = rows at t = 0 and at the end only
   bool events = false;             // write events.bin
-  double snapshot_interval = 0.0;  // reserved for VTK snapshots
+  double snapshot_interval = 0.0;  // VTK snapshots every interval (0 = none)
 };
 
 struct Scene {

@@ -12,6 +12,7 @@
 #include <fstream>
 #include <sstream>
 #include <string>
+#include <vector>
 
 #include "io/output.hpp"
 #include "tests/support/cli.hpp"
@@ -173,5 +174,63 @@ TEST(Cli, PeriodicAxisTooShortIsRefusedBeforeAnythingIsWritten) {
   EXPECT_EQ(r.code, 2);
   EXPECT_NE(r.out.find("short.toml: domain.upper: periodic axis x is 2.5 long"), std::string::npos) << r.out;
   EXPECT_FALSE(fs::exists(d / "o"));
+  fs::remove_all(d);
+}
+
+namespace {
+// The numbers of the DataArray named `name` in a .vtp file written by matep.
+std::vector<double> vtp_array(const std::string& text, const std::string& name) {
+  const auto tag = text.find("Name=\"" + name + "\"");
+  if (tag == std::string::npos) return {};
+  const auto start = text.find('>', tag) + 1;
+  const auto end = text.find("</DataArray>", start);
+  std::istringstream in(text.substr(start, end - start));
+  std::vector<double> v;
+  double x;
+  while (in >> x) v.push_back(x);
+  return v;
+}
+}  // namespace
+
+TEST(Cli, VtkSnapshotsAndTheirTimeSeriesReadBack) {
+  const fs::path d = tmpdir("vtk");
+  const Result r = sh("run " + kCases + "elastic_gas.toml --set run.end_time=1.0 --set output.snapshot_interval=0.25 --out " +
+                      d.string());
+  ASSERT_EQ(r.code, 0) << r.out;
+  // Snapshots at t = 0, 0.25, 0.5, 0.75 and 1, listed in order in the collection.
+  const std::string pvd = slurp(d / "snapshots.pvd");
+  const char* times[] = {"0", "0.25", "0.5", "0.75", "1"};
+  for (int k = 0; k < 5; ++k) {
+    const std::string file = "snapshots/snap_00000" + std::to_string(k) + ".vtp";
+    EXPECT_NE(pvd.find("timestep=\"" + std::string(times[k]) + "\" group=\"\" part=\"0\" file=\"" + file + "\""),
+              std::string::npos)
+        << pvd;
+    EXPECT_TRUE(fs::exists(d / file));
+  }
+  EXPECT_FALSE(fs::exists(d / "snapshots/snap_000005.vtp"));
+  // The last snapshot is the final state: positions, velocities and radii read back exactly.
+  const std::string vtp = slurp(d / "snapshots/snap_000004.vtp");
+  const auto pos = vtp_array(vtp, "position"), vel = vtp_array(vtp, "velocity"), rad = vtp_array(vtp, "radius");
+  const auto mode = vtp_array(vtp, "mode"), ids = vtp_array(vtp, "id");
+  ASSERT_EQ(pos.size(), 3u * 2744u);
+  ASSERT_EQ(rad.size(), 2744u);
+  ASSERT_EQ(mode.size(), 2744u);
+  EXPECT_EQ(ids[100], 100.0);
+  std::istringstream fin(slurp(d / "final_state.csv"));
+  std::string line;
+  std::getline(fin, line);  // header id,x,y,z,vx,vy,vz,wx,wy,wz,radius
+  for (std::size_t i = 0; std::getline(fin, line); ++i) {
+    std::vector<double> f;
+    std::istringstream ls(line);
+    std::string cell;
+    while (std::getline(ls, cell, ',')) f.push_back(std::stod(cell));
+    ASSERT_EQ(f.size(), 11u);
+    for (int k = 0; k < 3; ++k) {
+      EXPECT_EQ(pos[3 * i + k], f[1 + k]) << "particle " << i;
+      EXPECT_EQ(vel[3 * i + k], f[4 + k]) << "particle " << i;
+    }
+    EXPECT_EQ(rad[i], f[10]);
+    EXPECT_EQ(mode[i], 0.0);  // hard
+  }
   fs::remove_all(d);
 }

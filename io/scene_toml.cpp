@@ -339,16 +339,22 @@ bool TableReader::boolean_or(std::string_view k, bool def) const {
   return n->as_boolean()->get();
 }
 
-std::vector<double> TableReader::numbers(std::string_view k, std::size_t n) const {
+const toml::array& TableReader::array_of(std::string_view k, std::size_t n, std::string_view what) const {
   const toml::node& node = need(k);
   const toml::array* a = node.as_array();
   if (a == nullptr) {
-    fail(k, fmt::format("expected an array of {} numbers but found {}", n, type_name(node)), node);
+    fail(k, fmt::format("expected an array of {} {} but found {}", n, what, type_name(node)), node);
   }
   if (a->size() != n) {
-    fail(k, fmt::format("expected an array of {} numbers (one per dimension) but it has {}", n, a->size()),
+    fail(k, fmt::format("expected an array of {} {} (one per dimension) but it has {}", n, what, a->size()),
          node);
   }
+  return *a;
+}
+
+std::vector<double> TableReader::numbers(std::string_view k, std::size_t n) const {
+  const toml::array* a = &array_of(k, n, "numbers");
+  const toml::node& node = *a;
   std::vector<double> out;
   for (std::size_t i = 0; i < n; ++i) {
     const toml::node& e = *a->get(i);
@@ -363,15 +369,8 @@ std::vector<double> TableReader::numbers(std::string_view k, std::size_t n) cons
 }
 
 std::vector<bool> TableReader::booleans(std::string_view k, std::size_t n) const {
-  const toml::node& node = need(k);
-  const toml::array* a = node.as_array();
-  if (a == nullptr) {
-    fail(k, fmt::format("expected an array of {} booleans but found {}", n, type_name(node)), node);
-  }
-  if (a->size() != n) {
-    fail(k, fmt::format("expected an array of {} booleans (one per dimension) but it has {}", n, a->size()),
-         node);
-  }
+  const toml::array* a = &array_of(k, n, "booleans");
+  const toml::node& node = *a;
   std::vector<bool> out;
   for (std::size_t i = 0; i < n; ++i) {
     const toml::node& e = *a->get(i);

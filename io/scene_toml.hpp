@@ -94,6 +94,8 @@ class TableReader {
   bool boolean_or(std::string_view k, bool def) const;
   // Arrays of exactly n numbers / booleans.
   std::vector<double> numbers(std::string_view k, std::size_t n) const;
+  // The array at k, which must have exactly n elements (`what` names them in messages).
+  const toml::array& array_of(std::string_view k, std::size_t n, std::string_view what) const;
   std::vector<bool> booleans(std::string_view k, std::size_t n) const;
   // Sub-table (type-checked).
   TableReader sub(std::string_view k) const;

@@ -28,9 +28,26 @@ struct EventCounts {
   std::uint64_t total() const { return pair + wall + cell + stale + samples; }
 };
 
+// Soft-sphere (TDM) figures of a run; all zero for a pure event-driven run.
+struct SoftStats {
+  std::uint64_t steps = 0;          // time steps taken
+  double dt = 0.0;                  // time step used
+  double default_dt = 0.0;          // the engine's default step for this scene
+  double max_stable_dt = 0.0;       // Verlet stability limit of the stiffest contact
+  double contact_time = 0.0;        // shortest contact duration at impact_speed
+  double rayleigh_time = 0.0;       // shortest Rayleigh time (inf: no elastic constants)
+  double impact_speed = 0.0;        // largest expected impact speed
+  double skin = 0.0;                // Verlet-list skin
+  std::uint64_t rebuilds = 0;       // neighbour-list builds
+  std::uint64_t contacts = 0;       // pair + wall contacts at the end
+  int threads = 0;                  // threads of the force loop
+  double particle_steps_per_second = 0.0;
+};
+
 template <int D>
 struct RunResult {
-  std::string status = "ok";  // "ok" | "collapse" | "escaped" | "max_events"
+  std::string method = "edm";  // the engine that produced it
+  std::string status = "ok";  // "ok" | "collapse" | "escaped" | "max_events" | "unstable" | "max_steps"
   std::string message;        // empty when ok
   double time = 0.0;          // simulated time reached
   EventCounts counts;
@@ -40,6 +57,7 @@ struct RunResult {
   std::vector<Vec<D>> x, v;           // final state
   std::vector<double> radius;
   std::vector<Spin<D>> w;             // empty when the system had no spins (all zero)
+  SoftStats soft;                     // TDM and hybrid runs
 };
 
 // Runs the system from t = 0 to settings.end_time (or until it stops early). The system is taken

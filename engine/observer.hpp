@@ -39,8 +39,9 @@ struct ThermoSample {
   double kinetic_energy = 0.0;
   double rotational_energy = 0.0;
   double potential_energy = 0.0;  // -sum m g.x
+  double elastic_energy = 0.0;    // energy stored in soft contacts (0 for hard spheres)
   double temperature = 0.0;       // (1/N) sum m v^2 / d
-  std::uint64_t collisions = 0;   // cumulative pair + wall collisions
+  std::uint64_t collisions = 0;   // cumulative pair + wall collisions (soft: contacts begun)
   double pressure = 0.0;          // kinetic + collisional virial over the last interval
 };
 

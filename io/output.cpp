@@ -216,7 +216,7 @@ template class EventLogWriter<3>;
 
 ThermoCsvWriter::ThermoCsvWriter(const std::string& path) : path_(path) {
   f_ = open_or_throw(path, "w");
-  std::fputs("time,kinetic_energy,rotational_energy,potential_energy,temperature,collisions,pressure\n",
+  std::fputs("time,kinetic_energy,rotational_energy,potential_energy,temperature,collisions,pressure,elastic_energy\n",
              f_);
 }
 
@@ -225,8 +225,9 @@ ThermoCsvWriter::~ThermoCsvWriter() {
 }
 
 void ThermoCsvWriter::on_sample(const ThermoSample& s) {
-  fmt::print(f_, "{:.17g},{:.17g},{:.17g},{:.17g},{:.17g},{},{:.17g}\n", s.time, s.kinetic_energy,
-             s.rotational_energy, s.potential_energy, s.temperature, s.collisions, s.pressure);
+  fmt::print(f_, "{:.17g},{:.17g},{:.17g},{:.17g},{:.17g},{},{:.17g},{:.17g}\n", s.time, s.kinetic_energy,
+             s.rotational_energy, s.potential_energy, s.temperature, s.collisions, s.pressure,
+             s.elastic_energy);
   std::fflush(f_);  // a run that stops early keeps every row written so far
 }
 
@@ -371,6 +372,15 @@ void write_summary(const std::string& path, const SummaryInfo& info, const RunRe
   fmt::print(f, "  \"collisions_per_second\": {},\n", json_number(r.counts.collisions() / wall));
   fmt::print(f, "  \"max_overlap\": {},\n", json_number(r.max_overlap));
   fmt::print(f, "  \"max_overlap_relative\": {},\n", json_number(r.max_overlap_relative));
+  if (r.method != "edm") {
+    const SoftStats& s = r.soft;
+    fmt::print(f, "  \"soft\": {{\"steps\": {}, \"dt\": {}, \"default_dt\": {}, \"max_stable_dt\": {}, "
+               "\"contact_time\": {}, \"rayleigh_time\": {}, \"impact_speed\": {}, \"skin\": {}, "
+               "\"rebuilds\": {}, \"contacts\": {}, \"threads\": {}, \"particle_steps_per_second\": {}}},\n",
+               s.steps, json_number(s.dt), json_number(s.default_dt), json_number(s.max_stable_dt),
+               json_number(s.contact_time), json_number(s.rayleigh_time), json_number(s.impact_speed),
+               json_number(s.skin), s.rebuilds, s.contacts, s.threads, json_number(s.particle_steps_per_second));
+  }
   fmt::print(f, "  \"status\": {},\n", json_string(r.status));
   fmt::print(f, "  \"message\": {}\n", json_string(r.message));
   fmt::print(f, "}}\n");

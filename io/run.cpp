@@ -8,6 +8,7 @@
 #include <numbers>
 #include <stdexcept>
 
+#include "engine/tdm.hpp"
 #include "io/output.hpp"
 
 namespace matep {
@@ -24,6 +25,26 @@ EdmSettings edm_settings(const Scene& s) {
   e.collapse_count = s.collapse_count;
   e.collapse_window = s.collapse_window;
   return e;
+}
+
+TdmSettings tdm_settings(const Scene& s) {
+  TdmSettings t;
+  t.end_time = s.end_time;
+  t.dt = s.dt.value_or(0.0);
+  t.threads = s.threads.value_or(0);
+  t.thermo_interval = s.output.thermo_interval;
+  t.snapshot_interval = s.output.snapshot_interval;
+  return t;
+}
+
+// The soft-sphere checks of the engine, reported as scene errors (file: key: message).
+template <int D>
+SoftPlan soft_preflight(const Scene& scene, const System<D>& sys) {
+  try {
+    return tdm_preflight<D>(sys, tdm_settings(scene));
+  } catch (const std::invalid_argument& e) {
+    throw SceneError(fmt::format("{}: {}", scene.path, e.what()));
+  }
 }
 
 class ProgressObserver final : public Observer<2>, public Observer<3> {
@@ -57,11 +78,19 @@ void check_runnable(const Scene& scene, const System<D>& sys) {
 template <int D>
 RunOutcome run_system(const Scene& scene, const System<D>& sys, const std::string& dir,
                       const ProgressFn& progress) {
-  if (scene.method != "edm")
+  if (scene.method != "edm" && scene.method != "tdm")
     throw SceneError(fmt::format("{}: run.method: \"{}\" is not available in this version of matep "
-                                 "(available: \"edm\")",
+                                 "(available: \"edm\", \"tdm\")",
                                  scene.path, scene.method));
   check_runnable(scene, sys);
+  const bool soft = scene.method == "tdm";
+  if (soft) {
+    soft_preflight(scene, sys);
+    if (scene.output.events)
+      throw SceneError(fmt::format("{}: output.events: true, but the event log records instantaneous collisions "
+                                   "and a \"tdm\" run has none; set output.events = false",
+                                   scene.path));
+  }
   std::filesystem::create_directories(dir);
   const EdmSettings settings = edm_settings(scene);
   ThermoCsvWriter thermo(dir + "/thermo.csv");
@@ -82,7 +111,7 @@ RunOutcome run_system(const Scene& scene, const System<D>& sys, const std::strin
     observers.push_back(static_cast<Observer<D>*>(prog.get()));
   }
   const QueueKind q = scene.queue == "heap" ? QueueKind::Heap : QueueKind::Calendar;
-  RunResult<D> res = run_edm<D>(sys, settings, q, observers);
+  RunResult<D> res = soft ? run_tdm<D>(sys, tdm_settings(scene), observers) : run_edm<D>(sys, settings, q, observers);
   if (log) log->close();
   write_final_state<D>(dir + "/final_state.csv", res);
   SummaryInfo info;
@@ -133,16 +162,39 @@ std::string describe(const Scene& scene, const System<D>& sys) {
   for (std::size_t g = 0; g < per_group.size(); ++g)
     s += fmt::format("  [particles.{}] {}\n", scene.group_names[g], per_group[g]);
   s += fmt::format("method       {}", scene.method);
-  if (scene.method == "edm")
+  if (scene.method == "edm") {
     s += fmt::format(" (event-driven hard {}, {} queue)\n", D == 3 ? "spheres" : "disks", scene.queue);
-  else
+    s += "contact      smooth instantaneous collisions (no friction, no rotation modelled)\n";
+    for (const auto& m : sys.materials) {
+      s += fmt::format("  [material.{}] density {}, restitution {}\n", m.name, m.density,
+                       restitution_text(m.restitution));
+      if (m.friction && *m.friction > 0.0)
+        s += fmt::format("    note: friction = {} is not used by smooth EDM\n", *m.friction);
+    }
+  } else if (scene.method == "tdm") {
+    s += fmt::format(" (time-driven soft {}, velocity Verlet)\n", D == 3 ? "spheres" : "disks");
+    const SoftPlan plan = soft_preflight(scene, sys);
+    for (std::size_t a = 0; a < sys.materials.size(); ++a) {
+      const auto& m = sys.materials[a];
+      s += fmt::format("  [material.{}] density {}, restitution {}\n", m.name, m.density,
+                       restitution_text(m.restitution));
+      const SoftLaw& l = plan.laws.empty() ? SoftLaw{} : plan.laws[a * plan.materials + a];
+      if (!plan.laws.empty() && l.zeta >= 0.0 && (l.normal != NormalLaw::Hertz || l.restitution > 0.0)) {
+        const char* name = l.normal == NormalLaw::Linear ? "linear spring-dashpot"
+                           : l.normal == NormalLaw::Hertz ? "Hertz-Mindlin, damping exact for e"
+                                                          : "viscoelastic (Brilliantov et al.)";
+        s += fmt::format("    contact {}, friction {}, damping ratio {:.4g}\n", name, l.friction, l.zeta);
+      }
+    }
+    const TdmSettings ts = tdm_settings(scene);
+    const double dt = ts.dt > 0.0 ? ts.dt : plan.default_dt;
+    s += fmt::format("time step    {:.6g}{} (stability limit {:.6g}, set by {})\n", dt,
+                     ts.dt > 0.0 ? " (run.dt)" : " (default)", plan.max_stable_dt, plan.limiting);
+    s += fmt::format("             contact time {:.6g} at impact speed {:.4g}, Rayleigh time {:.6g}; about {:.3g} steps\n",
+                     plan.contact_time, plan.impact_speed, plan.rayleigh_time,
+                     dt > 0.0 ? std::ceil(scene.end_time / dt) : 0.0);
+  } else {
     s += " (not available in this version)\n";
-  s += "contact      smooth instantaneous collisions (no friction, no rotation modelled)\n";
-  for (const auto& m : sys.materials) {
-    s += fmt::format("  [material.{}] density {}, restitution {}\n", m.name, m.density,
-                     restitution_text(m.restitution));
-    if (m.friction && *m.friction > 0.0)
-      s += fmt::format("    note: friction = {} is not used by smooth EDM\n", *m.friction);
   }
   std::string per;
   for (int k = 0; k < D; ++k) per += sys.periodic[k] ? "yes " : "no ";

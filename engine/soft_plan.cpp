@@ -1,0 +1,280 @@
+#include "engine/soft_plan.hpp"
+
+#include <fmt/format.h>
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+
+#include "contact/timestep.hpp"
+
+namespace matep {
+
+namespace {
+
+constexpr double kInf = std::numeric_limits<double>::infinity();
+
+std::string key(const Material& m, const char* k) { return fmt::format("material.{}.{}", m.name, k); }
+
+NormalLaw law_kind(const Material& m) {
+  if (m.contact == "linear") return NormalLaw::Linear;
+  if (m.contact == "hertz") return NormalLaw::Hertz;
+  if (m.contact == "viscoelastic") return NormalLaw::Viscoelastic;
+  // Unset: Hertz when the elastic constants are given, else linear when a stiffness is.
+  if (m.young && m.poisson) return NormalLaw::Hertz;
+  if (m.stiffness) return NormalLaw::Linear;
+  throw std::invalid_argument(fmt::format(
+      "{}: not set, and neither young/poisson (Hertz) nor stiffness (linear) is given; a soft-sphere "
+      "run needs a contact law for every particle material",
+      key(m, "contact")));
+}
+
+const char* law_name(NormalLaw k) {
+  switch (k) {
+    case NormalLaw::Linear: return "linear";
+    case NormalLaw::Hertz: return "hertz";
+    case NormalLaw::Viscoelastic: return "viscoelastic";
+  }
+  return "?";
+}
+
+// The constant e a linear or Hertz law needs from a material.
+double constant_e(const Material& m, NormalLaw kind) {
+  if (m.restitution.model != Restitution::Model::Constant)
+    throw std::invalid_argument(fmt::format(
+        "{}: a velocity-dependent restitution model cannot drive the {} contact law, which takes "
+        "one constant e (use e = VALUE, or contact = \"viscoelastic\" whose e falls with impact speed)",
+        key(m, "restitution"), law_name(kind)));
+  if (!(m.restitution.e > 0.0))
+    throw std::invalid_argument(fmt::format(
+        "{}: e = {} cannot be reached by a soft contact law (a dashpot gives 0 < e <= 1)",
+        key(m, "restitution"), m.restitution.e));
+  return m.restitution.e;
+}
+
+// Mean of two optional values; a value set on one side only is used alone.
+double mix(const std::optional<double>& a, const std::optional<double>& b, double fallback) {
+  if (a && b) return 0.5 * (*a + *b);
+  if (a) return *a;
+  if (b) return *b;
+  return fallback;
+}
+
+void require_elastic(const Material& m, NormalLaw kind) {
+  if (!m.young)
+    throw std::invalid_argument(fmt::format("{}: missing; contact = \"{}\" needs young and poisson",
+                                            key(m, "young"), law_name(kind)));
+  if (!m.poisson)
+    throw std::invalid_argument(fmt::format("{}: missing; contact = \"{}\" needs young and poisson",
+                                            key(m, "poisson"), law_name(kind)));
+}
+
+template <int D>
+SoftLaw make_law(NormalLaw kind, const Material& a, const Material& b) {
+  SoftLaw l;
+  l.normal = kind;
+  l.friction = mix(a.friction, b.friction, 0.0);
+  const double q = inertia_factor<D>();
+  switch (kind) {
+    case NormalLaw::Linear: {
+      const double ea = constant_e(a, kind);
+      const double eb = constant_e(b, kind);
+      l.restitution = 0.5 * (ea + eb);
+      const double ka = *a.stiffness;
+      // Two springs of one material give that material's k; different ones their harmonic mean.
+      l.stiffness = b.stiffness ? 2.0 * ka * *b.stiffness / (ka + *b.stiffness) : ka;
+      if (a.dissipation || b.dissipation) l.gamma_n = mix(a.dissipation, b.dissipation, 0.0);
+      const double beta0 = mix(a.tangential_restitution, b.tangential_restitution, 1.0);
+      // k_t/k_n from the sticking tangential restitution beta0 (contact/soft.hpp); beta0 = 1 (the
+      // default) gives k_t/k_n = 2/7 for spheres and 1/3 for disks at e = 1.
+      l.kt_ratio = linear_kt_ratio_for(beta0, q, 1.0);
+      break;
+    }
+    case NormalLaw::Hertz: {
+      const double ea = constant_e(a, kind);
+      const double eb = constant_e(b, kind);
+      l.restitution = 0.5 * (ea + eb);
+      l.damping = HertzDamping::Exact;
+      break;
+    }
+    case NormalLaw::Viscoelastic: {
+      if (!a.dissipation)
+        throw std::invalid_argument(fmt::format(
+            "{}: missing; contact = \"viscoelastic\" needs the dissipation time A [s] (>= 0)",
+            key(a, "dissipation")));
+      l.dissipation_time = b.dissipation ? 0.5 * (*a.dissipation + *b.dissipation) : *a.dissipation;
+      break;
+    }
+  }
+  return l.resolved();
+}
+
+}  // namespace
+
+template <int D>
+SoftPlan plan_soft(const System<D>& sys) {
+  SoftPlan plan;
+  const int M = static_cast<int>(sys.materials.size());
+  plan.materials = M;
+  std::vector<char> used(M, 0), wall_used(M, 0);
+  std::vector<double> rmin(M, kInf), rmax(M, 0.0);
+  for (std::size_t i = 0; i < sys.size(); ++i) {
+    const int m = sys.material[i];
+    used[m] = 1;
+    rmin[m] = std::min(rmin[m], sys.radius[i]);
+    rmax[m] = std::max(rmax[m], sys.radius[i]);
+  }
+  for (const auto& w : sys.walls) wall_used[w.material] = 1;
+
+  // Law kind per particle material; all particle materials must share one.
+  std::vector<NormalLaw> kind(M, NormalLaw::Hertz);
+  int first = -1;
+  for (int a = 0; a < M; ++a) {
+    if (!used[a]) continue;
+    const Material& m = sys.materials[a];
+    kind[a] = law_kind(m);
+    if (first < 0) first = a;
+    if (kind[a] != kind[first])
+      throw std::invalid_argument(fmt::format(
+          "{}: \"{}\" differs from material.{}.contact = \"{}\"; all particle materials of a soft-sphere "
+          "run use one contact law",
+          key(m, "contact"), law_name(kind[a]), sys.materials[first].name, law_name(kind[first])));
+    if (kind[a] == NormalLaw::Linear && !m.stiffness)
+      throw std::invalid_argument(
+          fmt::format("{}: missing; contact = \"linear\" needs the normal stiffness k_n [N/m]", key(m, "stiffness")));
+    if (kind[a] != NormalLaw::Linear) require_elastic(m, kind[a]);
+  }
+  if (first < 0) return plan;  // no particles
+  const NormalLaw K = kind[first];
+  for (int a = 0; a < M; ++a) {
+    const Material& m = sys.materials[a];
+    if (!wall_used[a] || used[a] || m.contact.empty()) continue;
+    if (law_kind(m) != K)
+      throw std::invalid_argument(fmt::format(
+          "{}: \"{}\" (a wall material) differs from the particles' contact law \"{}\"", key(m, "contact"),
+          m.contact, law_name(K)));
+  }
+  if (K != NormalLaw::Linear) {
+    for (int a = 0; a < M; ++a) {
+      const Material& m = sys.materials[a];
+      if (wall_used[a] && !used[a] && (m.young.has_value() != m.poisson.has_value()))
+        require_elastic(m, K);  // a wall with only one of the two constants is a typo
+    }
+  }
+
+  plan.elastic.assign(M, SoftMaterial{});
+  for (int a = 0; a < M; ++a) {
+    const Material& m = sys.materials[a];
+    if (m.young && m.poisson) plan.elastic[a] = {*m.young, *m.poisson};
+  }
+  plan.laws.assign(static_cast<std::size_t>(M) * M, SoftLaw{});
+  for (int a = 0; a < M; ++a)
+    for (int b = 0; b < M; ++b)
+      if (used[a] && used[b])
+        plan.laws[a * M + b] = make_law<D>(K, sys.materials[a], sys.materials[b]);
+  const int W = static_cast<int>(sys.walls.size());
+  plan.wall_laws.assign(static_cast<std::size_t>(W) * M, SoftLaw{});
+  plan.wall_elastic.assign(W, SoftMaterial::rigid());
+  for (int w = 0; w < W; ++w) {
+    const Material& wm = sys.materials[sys.walls[w].material];
+    if (wm.young && wm.poisson && K != NormalLaw::Linear) plan.wall_elastic[w] = {*wm.young, *wm.poisson};
+    for (int a = 0; a < M; ++a)
+      if (used[a]) plan.wall_laws[w * M + a] = make_law<D>(K, sys.materials[a], wm);
+  }
+  for (const auto& l : plan.laws) plan.friction = plan.friction || l.friction > 0.0;
+  for (const auto& l : plan.wall_laws) plan.friction = plan.friction || l.friction > 0.0;
+
+  // Largest expected normal impact speed: twice the fastest particle (head-on), plus the fall
+  // through the domain's height along gravity, plus the fastest spin's surface speed.
+  double vmax = 0.0;
+  for (std::size_t i = 0; i < sys.size(); ++i) {
+    double s = sys.v[i].norm();
+    if (!sys.w.empty()) s += sys.w[i].norm() * sys.radius[i];
+    vmax = std::max(vmax, s);
+  }
+  const double g = sys.gravity.norm();
+  double H = 0.0;
+  if (g > 0.0)
+    for (int k = 0; k < D; ++k) H += std::abs(sys.gravity[k]) / g * (sys.upper[k] - sys.lower[k]);
+  plan.impact_speed = 2.0 * vmax + std::sqrt(2.0 * g * H);
+
+  const double q = inertia_factor<D>();
+  plan.contact_time = kInf;
+  plan.rayleigh_time = kInf;
+  plan.max_stable_dt = kInf;
+  auto consider = [&](const SoftContact& c, const PairParams& p, const SoftLaw& law, const std::string& what) {
+    const double v = plan.impact_speed;
+    if (law.normal == NormalLaw::Linear || v > 0.0)
+      plan.contact_time = std::min(plan.contact_time, soft_contact_time(law, p, v));
+    const double delta = law.normal == NormalLaw::Linear ? 0.0 : (v > 0.0 ? hertz_max_overlap(p, v) : 0.0);
+    const double h = verlet_max_step(c, delta, q);
+    if (h < plan.max_stable_dt) {
+      plan.max_stable_dt = h;
+      plan.limiting = what;
+    }
+  };
+  for (int a = 0; a < M; ++a) {
+    if (!used[a]) continue;
+    const Material& ma = sys.materials[a];
+    if (ma.young && ma.poisson)
+      plan.rayleigh_time = std::min(plan.rayleigh_time, rayleigh_time(rmin[a], ma.density, *ma.young, *ma.poisson));
+    const double mass_a = ma.density * ball_volume<D>(rmin[a]);
+    for (int b = 0; b < M; ++b) {
+      if (!used[b]) continue;
+      const double mass_b = sys.materials[b].density * ball_volume<D>(rmin[b]);
+      const SoftContact c = pair_contact(plan, a, rmin[a], mass_a, b, rmin[b], mass_b);
+      PairParams p{c.normal == NormalLaw::Linear ? 0.0 : effective_young(plan.elastic[a].young, plan.elastic[a].poisson,
+                                                                     plan.elastic[b].young, plan.elastic[b].poisson),
+                   0.0, effective_radius(rmin[a], rmin[b]), effective_mass(mass_a, mass_b)};
+      consider(c, p, plan.laws[a * M + b],
+               fmt::format("material.{} - material.{} contact at radius {}", ma.name, sys.materials[b].name,
+                           std::min(rmin[a], rmin[b])));
+    }
+    for (int w = 0; w < W; ++w) {
+      const SoftContact c = wall_contact(plan, w, a, rmin[a], mass_a);
+      PairParams p{c.normal == NormalLaw::Linear
+                       ? 0.0
+                       : effective_young(plan.elastic[a].young, plan.elastic[a].poisson, plan.wall_elastic[w].young,
+                                         plan.wall_elastic[w].poisson),
+                   0.0, rmin[a], mass_a};
+      consider(c, p, plan.wall_laws[w * M + a],
+               fmt::format("material.{} - wall.{} contact at radius {}", ma.name, sys.walls[w].name, rmin[a]));
+    }
+  }
+  plan.default_dt = kSoftStepFraction * std::min(plan.contact_time, plan.rayleigh_time);
+  if (!std::isfinite(plan.default_dt)) plan.default_dt = 0.0;  // nothing sets a time scale
+  return plan;
+}
+
+SoftContact pair_contact(const SoftPlan& plan, int ma, double Ri, double mi, int mb, double Rj, double mj) {
+  const SoftLaw& law = plan.laws[static_cast<std::size_t>(ma) * plan.materials + mb];
+  PairParams p;
+  p.Rstar = effective_radius(Ri, Rj);
+  p.mstar = effective_mass(mi, mj);
+  if (law.normal != NormalLaw::Linear) {
+    const SoftMaterial& a = plan.elastic[ma];
+    const SoftMaterial& b = plan.elastic[mb];
+    p.Estar = effective_young(a.young, a.poisson, b.young, b.poisson);
+    p.Gstar = effective_shear(a.young, a.poisson, b.young, b.poisson);
+  }
+  return soft_contact(law, p);
+}
+
+SoftContact wall_contact(const SoftPlan& plan, int w, int ma, double R, double m) {
+  const SoftLaw& law = plan.wall_laws[static_cast<std::size_t>(w) * plan.materials + ma];
+  PairParams p;
+  p.Rstar = R;
+  p.mstar = m;
+  if (law.normal != NormalLaw::Linear) {
+    const SoftMaterial& a = plan.elastic[ma];
+    const SoftMaterial& b = plan.wall_elastic[w];
+    p.Estar = effective_young(a.young, a.poisson, b.young, b.poisson);
+    p.Gstar = effective_shear(a.young, a.poisson, b.young, b.poisson);
+  }
+  return soft_contact(law, p);
+}
+
+template SoftPlan plan_soft<2>(const System<2>&);
+template SoftPlan plan_soft<3>(const System<3>&);
+
+}  // namespace matep

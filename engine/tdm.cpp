@@ -1,0 +1,803 @@
+#include "engine/tdm.hpp"
+
+#include <fmt/format.h>
+#include <omp.h>
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <numeric>
+#include <stdexcept>
+
+#include "contact/soft.hpp"
+
+namespace matep {
+
+namespace {
+
+using Clock = std::chrono::steady_clock;
+
+// Force on a particle owned by another thread's range, added after the parallel loop.
+template <int D>
+struct Spill {
+  std::uint32_t j;
+  Vec<D> f;
+  Spin<D> t;
+};
+
+// A contact remembered across a neighbour-list rebuild, keyed by the original particle ids
+// (lo < hi; for a wall, hi = wall index) with its tangential spring oriented for lo.
+template <int D>
+struct Memory {
+  std::uint64_t key;
+  Vec<D> xi;
+};
+
+template <int D>
+class TdmEngine {
+ public:
+  TdmEngine(System<D>& sys, const TdmSettings& set, const std::vector<Observer<D>*>& obs)
+      : sys_(sys), set_(set), obs_(obs) {}
+
+  RunResult<D> run();
+
+ private:
+  // ---- setup ----
+  void setup();
+  // ---- neighbour lists ----
+  void rebuild();
+  std::uint8_t image_index(Vec<D>& dx) const;
+  // ---- forces ----
+  void forces();
+  template <bool Rot, bool Uniform>
+  void pair_range(int t);
+  template <bool Rot, bool Uniform>
+  void wall_range(int t);
+  void integrate(int t);
+  // ---- diagnostics ----
+  ThermoSample sample(double time);
+  Snapshot<D> snapshot(double time) const;
+  Vec<D> v_full(std::size_t i) const { return v_[i] + hdt_ * (f_[i] * minv_[i] + g_); }
+  Spin<D> w_full(std::size_t i) const { return rot_ ? Spin<D>(w_[i] + hdt_ * (tq_[i] * iinv_[i])) : w_[i]; }
+  SoftContact pair_coeffs(std::size_t i, std::size_t j) const {
+    return uniform_ ? cpair_ : pair_contact(plan_, mat_[i], R_[i], m_[i], mat_[j], R_[j], m_[j]);
+  }
+  SoftContact wall_coeffs(int w, std::size_t i) const {
+    return uniform_ ? cwall_[w] : wall_contact(plan_, w, mat_[i], R_[i], m_[i]);
+  }
+
+  System<D>& sys_;
+  const TdmSettings& set_;
+  const std::vector<Observer<D>*>& obs_;
+
+  SoftPlan plan_;
+  std::size_t N_ = 0;
+  double dt_ = 0.0, hdt_ = 0.0, skin_ = 0.0, half_skin2_ = 0.0;
+  int T_ = 1;
+  bool rot_ = false, uniform_ = false;
+  SoftContact cpair_;
+  std::vector<SoftContact> cwall_;
+  Vec<D> g_ = Vec<D>::Zero(), L_ = Vec<D>::Zero();
+
+  // Particle state in storage order (sorted by cell at every rebuild); id_ maps back.
+  std::vector<Vec<D>> x_, v_, acc_, f_, x0_;
+  std::vector<Spin<D>> w_, alpha_, tq_;
+  std::vector<double> R_, m_, minv_, iinv_;
+  std::vector<int> mat_;
+  std::vector<std::uint32_t> id_;
+
+  // Half Verlet list in CSR form: entries off_[i] .. off_[i+1] hold j, the periodic image, the
+  // touching flag and (with rotation) the tangential spring.
+  std::vector<std::uint32_t> off_, nb_;
+  std::vector<std::uint8_t> sh_, touch_;
+  std::vector<Vec<D>> xi_;
+  std::array<Vec<D>, D == 3 ? 27 : 9> shifts_;
+  // Wall list: (particle, wall) pairs within the skin, in particle order.
+  std::vector<std::uint32_t> wl_i_, wl_w_;
+  std::vector<std::uint8_t> wl_touch_;
+  std::vector<Vec<D>> wl_xi_;
+
+  // Cell grid used by rebuild().
+  std::array<int, D> nc_{};
+  Vec<D> cell_len_ = Vec<D>::Ones();
+  std::vector<std::uint32_t> cell_of_, cell_start_, order_;
+
+  // Threads: particle ranges and per-thread accumulators.
+  std::vector<std::uint32_t> lo_, hi_, wlo_, whi_;
+  std::vector<std::vector<Spill<D>>> spill_;
+  struct alignas(64) Acc {
+    std::uint64_t new_pair = 0, new_wall = 0;
+    double max_rel = 0.0, max_abs = 0.0;
+    bool moved = false;
+  };
+  std::vector<Acc> acc_t_;
+
+  std::uint64_t steps_ = 0, rebuilds_ = 0, pair_begun_ = 0, wall_begun_ = 0;
+  double max_rel_ = 0.0, max_abs_ = 0.0;
+  std::string status_ = "ok", message_;
+};
+
+double largest_diameter(const std::vector<double>& radius) {
+  double dmax = 0.0;
+  for (double r : radius) dmax = std::max(dmax, 2.0 * r);
+  return dmax;
+}
+
+template <int D>
+double skin_of(const System<D>& sys, const TdmSettings& set) {
+  return set.skin > 0.0 ? set.skin : 0.1 * largest_diameter(sys.radius);
+}
+
+template <int D>
+SoftPlan preflight(const System<D>& sys, const TdmSettings& set) {
+  if (!(set.end_time > 0.0)) throw std::invalid_argument(fmt::format("run.end_time: {} must be > 0", set.end_time));
+  SoftPlan plan = plan_soft<D>(sys);
+  if (set.dt > 0.0 && set.dt > plan.max_stable_dt)
+    throw std::invalid_argument(fmt::format(
+        "run.dt: {} is above the stability limit {:.6g} of velocity Verlet for the stiffest contact "
+        "({}, at impact speed {:.4g}); use run.dt <= {:.6g} (the default is {:.6g})",
+        set.dt, plan.max_stable_dt, plan.limiting, plan.impact_speed, plan.max_stable_dt, plan.default_dt));
+  const double dmax = largest_diameter(sys.radius), skin = skin_of(sys, set);
+  for (int k = 0; k < D; ++k) {
+    const double L = sys.upper[k] - sys.lower[k];
+    if (sys.periodic[k] && L < 2.0 * (dmax + skin))
+      throw std::invalid_argument(fmt::format(
+          "domain.upper: periodic axis {} is {} long, shorter than twice the largest diameter plus the "
+          "skin ({})",
+          "xyz"[k], L, 2.0 * (dmax + skin)));
+  }
+  return plan;
+}
+
+template <int D>
+void TdmEngine<D>::setup() {
+  N_ = sys_.size();
+  plan_ = preflight(sys_, set_);
+  const double dt = set_.dt > 0.0 ? set_.dt : (plan_.default_dt > 0.0 ? plan_.default_dt : set_.end_time);
+  // A whole number of steps ends exactly at end_time (the step only shortens).
+  const double n = std::ceil(set_.end_time / dt * (1.0 - 1e-12));
+  dt_ = set_.end_time / std::max(1.0, n);
+  hdt_ = 0.5 * dt_;
+  const double dmax = largest_diameter(sys_.radius);
+  skin_ = skin_of(sys_, set_);
+  half_skin2_ = 0.25 * skin_ * skin_;
+  L_ = sys_.upper - sys_.lower;
+  g_ = sys_.gravity;
+  rot_ = plan_.friction;
+
+  x_ = sys_.x;
+  v_ = sys_.v;
+  w_ = sys_.w.empty() ? std::vector<Spin<D>>(N_, Spin<D>::Zero()) : sys_.w;
+  R_ = sys_.radius;
+  mat_ = sys_.material;
+  acc_.assign(N_, Vec<D>::Zero());
+  f_.assign(N_, Vec<D>::Zero());
+  alpha_.assign(N_, Spin<D>::Zero());
+  tq_.assign(N_, Spin<D>::Zero());
+  m_.resize(N_);
+  minv_.resize(N_);
+  iinv_.resize(N_);
+  id_.resize(N_);
+  const double q = inertia_factor<D>();
+  for (std::size_t i = 0; i < N_; ++i) {
+    m_[i] = sys_.mass(i);
+    minv_[i] = 1.0 / m_[i];
+    iinv_[i] = 1.0 / (q * m_[i] * R_[i] * R_[i]);  // I = q m R^2: 2/5 spheres, 1/2 disks
+    id_[i] = static_cast<std::uint32_t>(i);
+  }
+  // Release the system's copy of the particle state (memory).
+  sys_.x = {};
+  sys_.v = {};
+  sys_.w = {};
+
+  uniform_ = N_ > 0;
+  for (std::size_t i = 1; i < N_ && uniform_; ++i) uniform_ = R_[i] == R_[0] && mat_[i] == mat_[0];
+  if (uniform_) {
+    cpair_ = pair_contact(plan_, mat_[0], R_[0], m_[0], mat_[0], R_[0], m_[0]);
+    for (int w = 0; w < static_cast<int>(sys_.walls.size()); ++w)
+      cwall_.push_back(wall_contact(plan_, w, mat_[0], R_[0], m_[0]));
+  }
+
+  // Periodic image shifts: index sum_k (s_k + 1) 3^k for s_k in {-1, 0, 1}.
+  for (std::size_t s = 0; s < shifts_.size(); ++s) {
+    std::size_t r = s;
+    for (int k = 0; k < D; ++k) {
+      shifts_[s][k] = (static_cast<double>(r % 3) - 1.0) * L_[k];
+      r /= 3;
+    }
+  }
+
+  // Cell grid: cells at least one largest diameter plus the skin wide.
+  const double cs = dmax + skin_;
+  for (int k = 0; k < D; ++k) {
+    nc_[k] = std::max(1, static_cast<int>(std::floor(L_[k] / cs)));
+    nc_[k] = std::min(nc_[k], 1 << 20);
+    cell_len_[k] = L_[k] / nc_[k];
+  }
+
+  // Threads: contiguous particle ranges, at least a few hundred particles each.
+  int T = set_.threads > 0 ? set_.threads : omp_get_max_threads();
+  T = std::max(1, std::min<int>(T, static_cast<int>(N_ / 256) + 1));
+  T_ = T;
+  lo_.resize(T_);
+  hi_.resize(T_);
+  for (int t = 0; t < T_; ++t) {
+    lo_[t] = static_cast<std::uint32_t>(N_ * t / T_);
+    hi_[t] = static_cast<std::uint32_t>(N_ * (t + 1) / T_);
+  }
+  wlo_.resize(T_);
+  whi_.resize(T_);
+  spill_.resize(T_);
+  acc_t_.resize(T_);
+}
+
+// Minimum image: shifts dx = x_i - x_j onto the nearest periodic image and returns the index of
+// the shift added.
+template <int D>
+std::uint8_t TdmEngine<D>::image_index(Vec<D>& dx) const {
+  int s = 0, p = 1;
+  for (int k = 0; k < D; ++k, p *= 3) {
+    int sk = 0;
+    if (sys_.periodic[k]) {
+      if (dx[k] > 0.5 * L_[k]) sk = -1;
+      else if (dx[k] < -0.5 * L_[k]) sk = 1;
+      dx[k] += sk * L_[k];
+    }
+    s += (sk + 1) * p;
+  }
+  return static_cast<std::uint8_t>(s);
+}
+
+template <int D>
+void TdmEngine<D>::rebuild() {
+  ++rebuilds_;
+  // 1. Remember touching contacts by particle ids.
+  std::vector<Memory<D>> mem;
+  for (std::size_t i = 0; i < N_ && !off_.empty(); ++i)
+    for (std::uint32_t e = off_[i]; e < off_[i + 1]; ++e) {
+      if (!touch_[e]) continue;
+      const std::uint32_t a = id_[i], b = id_[nb_[e]];
+      const Vec<D> xi = rot_ ? xi_[e] : Vec<D>::Zero();
+      mem.push_back(a < b ? Memory<D>{(std::uint64_t(a) << 32) | b, xi} : Memory<D>{(std::uint64_t(b) << 32) | a, -xi});
+    }
+  std::sort(mem.begin(), mem.end(), [](const auto& p, const auto& q) { return p.key < q.key; });
+  std::vector<Memory<D>> wmem;
+  for (std::size_t e = 0; e < wl_i_.size(); ++e)
+    if (wl_touch_[e])
+      wmem.push_back({(std::uint64_t(id_[wl_i_[e]]) << 32) | wl_w_[e], rot_ ? wl_xi_[e] : Vec<D>::Zero()});
+  std::sort(wmem.begin(), wmem.end(), [](const auto& p, const auto& q) { return p.key < q.key; });
+  auto recall = [](const std::vector<Memory<D>>& m, std::uint64_t key) -> const Memory<D>* {
+    auto it = std::lower_bound(m.begin(), m.end(), key, [](const Memory<D>& p, std::uint64_t k) { return p.key < k; });
+    return (it != m.end() && it->key == key) ? &*it : nullptr;
+  };
+
+  // 2. Wrap periodic axes, check the state, bin into cells.
+  std::size_t ncell = 1;
+  for (int k = 0; k < D; ++k) ncell *= static_cast<std::size_t>(nc_[k]);
+  cell_of_.resize(N_);
+  cell_start_.assign(ncell + 1, 0);
+  for (std::size_t i = 0; i < N_; ++i) {
+    Vec<D>& x = x_[i];
+    if (!x.allFinite()) {
+      status_ = "unstable";
+      message_ = fmt::format("particle {} has a non-finite position: the time step {} is too long for the contact "
+                             "stiffness (stability limit {:.6g})",
+                             id_[i], dt_, plan_.max_stable_dt);
+      return;
+    }
+    std::size_t c = 0, p = 1;
+    for (int k = 0; k < D; ++k) {
+      if (sys_.periodic[k]) {
+        x[k] = sys_.lower[k] + (x[k] - sys_.lower[k]) - L_[k] * std::floor((x[k] - sys_.lower[k]) / L_[k]);
+        if (x[k] >= sys_.upper[k]) x[k] = sys_.lower[k];
+      } else if (x[k] < sys_.lower[k] || x[k] > sys_.upper[k]) {
+        status_ = "escaped";
+        message_ = fmt::format("particle {} left the domain along {} at {} (no wall there; the axis is not periodic)",
+                               id_[i], "xyz"[k], x[k]);
+        return;
+      }
+      int ck = static_cast<int>((x[k] - sys_.lower[k]) / cell_len_[k]);
+      ck = std::clamp(ck, 0, nc_[k] - 1);
+      c += static_cast<std::size_t>(ck) * p;
+      p *= static_cast<std::size_t>(nc_[k]);
+    }
+    cell_of_[i] = static_cast<std::uint32_t>(c);
+    ++cell_start_[c + 1];
+  }
+  std::partial_sum(cell_start_.begin(), cell_start_.end(), cell_start_.begin());
+
+  // 3. Reorder particles by cell (stable counting sort) for memory locality.
+  order_.resize(N_);
+  {
+    std::vector<std::uint32_t> fill(cell_start_.begin(), cell_start_.end() - 1);
+    for (std::size_t i = 0; i < N_; ++i) order_[fill[cell_of_[i]]++] = static_cast<std::uint32_t>(i);
+  }
+  auto permute = [&](auto& a) {
+    using A = std::remove_reference_t<decltype(a)>;
+    A b(a.size());
+    for (std::size_t k = 0; k < N_; ++k) b[k] = a[order_[k]];
+    a.swap(b);
+  };
+  permute(x_); permute(v_); permute(acc_); permute(f_); permute(w_); permute(alpha_); permute(tq_);
+  permute(R_); permute(m_); permute(minv_); permute(iinv_); permute(mat_); permute(id_);
+  x0_ = x_;
+
+  // 4. Half list: pairs within R_i + R_j + skin, each once (own cell: j > i; other cells: only
+  // neighbour cells with a larger index, after removing duplicates from periodic wrap).
+  off_.assign(N_ + 1, 0);
+  nb_.clear();
+  sh_.clear();
+  std::array<int, D> cc{};
+  std::vector<std::uint32_t> ncells;
+  std::vector<std::uint32_t> cell_ids(N_);
+  for (std::size_t c = 0; c < ncell; ++c)
+    for (std::uint32_t i = cell_start_[c]; i < cell_start_[c + 1]; ++i) cell_ids[i] = static_cast<std::uint32_t>(c);
+  for (std::size_t c = 0; c < ncell; ++c) {
+    // Neighbour cells of c with larger index.
+    std::size_t r = c;
+    for (int k = 0; k < D; ++k) {
+      cc[k] = static_cast<int>(r % nc_[k]);
+      r /= nc_[k];
+    }
+    ncells.clear();
+    const int nstencil = D == 3 ? 27 : 9;
+    for (int s = 0; s < nstencil; ++s) {
+      int rr = s;
+      std::size_t idx = 0, p = 1;
+      bool ok = true;
+      for (int k = 0; k < D; ++k) {
+        int ck = cc[k] + (rr % 3) - 1;
+        rr /= 3;
+        if (ck < 0 || ck >= nc_[k]) {
+          if (!sys_.periodic[k]) { ok = false; break; }
+          ck = (ck + nc_[k]) % nc_[k];
+        }
+        idx += static_cast<std::size_t>(ck) * p;
+        p *= static_cast<std::size_t>(nc_[k]);
+      }
+      if (ok && idx > c) ncells.push_back(static_cast<std::uint32_t>(idx));
+    }
+    std::sort(ncells.begin(), ncells.end());
+    ncells.erase(std::unique(ncells.begin(), ncells.end()), ncells.end());
+    for (std::uint32_t i = cell_start_[c]; i < cell_start_[c + 1]; ++i) {
+      const double Ri = R_[i];
+      auto test = [&](std::uint32_t j) {
+        Vec<D> dx = x_[i] - x_[j];
+        const std::uint8_t s = image_index(dx);
+        const double cut = Ri + R_[j] + skin_;
+        if (dx.squaredNorm() < cut * cut) {
+          nb_.push_back(j);
+          sh_.push_back(s);
+        }
+      };
+      for (std::uint32_t j = i + 1; j < cell_start_[c + 1]; ++j) test(j);
+      for (std::uint32_t c2 : ncells)
+        for (std::uint32_t j = cell_start_[c2]; j < cell_start_[c2 + 1]; ++j) test(j);
+      off_[i + 1] = static_cast<std::uint32_t>(nb_.size());
+    }
+  }
+  // Recall touching flags and springs.
+  touch_.assign(nb_.size(), 0);
+  if (rot_) xi_.assign(nb_.size(), Vec<D>::Zero());
+  if (!mem.empty())
+    for (std::size_t i = 0; i < N_; ++i)
+      for (std::uint32_t e = off_[i]; e < off_[i + 1]; ++e) {
+        const std::uint32_t a = id_[i], b = id_[nb_[e]];
+        const std::uint64_t key = a < b ? (std::uint64_t(a) << 32) | b : (std::uint64_t(b) << 32) | a;
+        if (const Memory<D>* m = recall(mem, key)) {
+          touch_[e] = 1;
+          if (rot_) xi_[e] = a < b ? m->xi : Vec<D>(-m->xi);
+        }
+      }
+
+  // 5. Wall list.
+  wl_i_.clear();
+  wl_w_.clear();
+  for (std::size_t i = 0; i < N_; ++i)
+    for (std::size_t w = 0; w < sys_.walls.size(); ++w) {
+      const auto& W = sys_.walls[w];
+      if ((x_[i] - W.point).dot(W.normal) < R_[i] + skin_) {
+        wl_i_.push_back(static_cast<std::uint32_t>(i));
+        wl_w_.push_back(static_cast<std::uint32_t>(w));
+      }
+    }
+  wl_touch_.assign(wl_i_.size(), 0);
+  if (rot_) wl_xi_.assign(wl_i_.size(), Vec<D>::Zero());
+  if (!wmem.empty())
+    for (std::size_t e = 0; e < wl_i_.size(); ++e)
+      if (const Memory<D>* m = recall(wmem, (std::uint64_t(id_[wl_i_[e]]) << 32) | wl_w_[e])) {
+        wl_touch_[e] = 1;
+        if (rot_) wl_xi_[e] = m->xi;
+      }
+  for (int t = 0; t < T_; ++t) {
+    wlo_[t] = static_cast<std::uint32_t>(std::lower_bound(wl_i_.begin(), wl_i_.end(), lo_[t]) - wl_i_.begin());
+    whi_[t] = static_cast<std::uint32_t>(std::lower_bound(wl_i_.begin(), wl_i_.end(), hi_[t]) - wl_i_.begin());
+  }
+}
+
+// Pair forces of the particles in thread t's range. Forces on a partner outside the range are
+// spilled; the touching flag counts contacts begun.
+template <int D>
+template <bool Rot, bool Uniform>
+void TdmEngine<D>::pair_range(int t) {
+  Acc& acc = acc_t_[t];
+  auto& spill = spill_[t];
+  const std::uint32_t lo = lo_[t], hi = hi_[t];
+  const double dt = dt_, hdt = hdt_;
+  for (std::uint32_t i = lo; i < hi; ++i) {
+    const Vec<D> xi = x_[i];
+    const double Ri = R_[i];
+    Vec<D> fi = Vec<D>::Zero();
+    Spin<D> ti = Spin<D>::Zero();
+    const std::uint32_t end = off_[i + 1];
+    for (std::uint32_t e = off_[i]; e < end; ++e) {
+      const std::uint32_t j = nb_[e];
+      const Vec<D> dx = xi - x_[j] + shifts_[sh_[e]];
+      const double Rs = Ri + R_[j];
+      const double r2 = dx.squaredNorm();
+      if (r2 >= Rs * Rs) {
+        if (touch_[e]) {
+          touch_[e] = 0;
+          if constexpr (Rot) xi_[e].setZero();
+        }
+        continue;
+      }
+      const double r = std::sqrt(r2);
+      const Vec<D> n = dx * (1.0 / r);
+      const double delta = Rs - r;
+      if (!touch_[e]) {
+        touch_[e] = 1;
+        ++acc.new_pair;
+      }
+      if (delta > acc.max_rel * Rs) {
+        acc.max_rel = delta / Rs;
+        acc.max_abs = std::max(acc.max_abs, delta);
+      }
+      const SoftContact c = Uniform ? cpair_ : pair_coeffs(i, j);
+      // Predicted velocities at the new time: v(t + h/2) + h/2 a(t).
+      const Vec<D> vi = v_[i] + hdt * acc_[i];
+      const Vec<D> vj = v_[j] + hdt * acc_[j];
+      Vec<D> F;
+      Spin<D> tj = Spin<D>::Zero();
+      if constexpr (!Rot) {
+        const double vn = (vi - vj).dot(n);
+        F = normal_force(c, delta, -vn) * n;
+      } else {
+        const double li = pair_lever_arm(Ri, delta), lj = pair_lever_arm(R_[j], delta);
+        ContactKinematics<D> k;
+        k.delta = delta;
+        k.n = n;
+        k.v = contact_velocity<D>(vi, w_[i] + hdt * alpha_[i], li, vj, w_[j] + hdt * alpha_[j], lj, n);
+        k.dxi = dt * contact_velocity<D>(v_[i], w_[i], li, v_[j], w_[j], lj, n);
+        ContactHistory<D> h{xi_[e]};
+        const ContactForce<D> cf = soft_contact_force<D>(c, k, h);
+        xi_[e] = h.xi;
+        F = cf.force;
+        ti += contact_torque<D>(n, cf.tangential, li);
+        tj = contact_torque<D>(n, cf.tangential, lj);
+      }
+      fi += F;
+      if (j >= lo && j < hi) {
+        f_[j] -= F;
+        if constexpr (Rot) tq_[j] += tj;
+      } else {
+        spill.push_back({j, -F, tj});
+      }
+    }
+    f_[i] += fi;
+    if constexpr (Rot) tq_[i] += ti;
+  }
+}
+
+template <int D>
+template <bool Rot, bool Uniform>
+void TdmEngine<D>::wall_range(int t) {
+  Acc& acc = acc_t_[t];
+  const double dt = dt_, hdt = hdt_;
+  for (std::uint32_t e = wlo_[t]; e < whi_[t]; ++e) {
+    const std::uint32_t i = wl_i_[e];
+    const auto& W = sys_.walls[wl_w_[e]];
+    const Vec<D>& n = W.normal;
+    const double delta = R_[i] - (x_[i] - W.point).dot(n);
+    if (delta <= 0.0) {
+      if (wl_touch_[e]) {
+        wl_touch_[e] = 0;
+        if constexpr (Rot) wl_xi_[e].setZero();
+      }
+      continue;
+    }
+    if (!wl_touch_[e]) {
+      wl_touch_[e] = 1;
+      ++acc.new_wall;
+    }
+    if (delta > acc.max_rel * R_[i]) {
+      acc.max_rel = delta / R_[i];
+      acc.max_abs = std::max(acc.max_abs, delta);
+    }
+    const SoftContact c = Uniform ? cwall_[wl_w_[e]] : wall_coeffs(static_cast<int>(wl_w_[e]), i);
+    const Vec<D> vi = v_[i] + hdt * acc_[i];
+    if constexpr (!Rot) {
+      f_[i] += normal_force(c, delta, -vi.dot(n)) * n;
+    } else {
+      const double li = wall_lever_arm(R_[i], delta);
+      ContactKinematics<D> k;
+      k.delta = delta;
+      k.n = n;
+      k.v = vi - spin_cross<D>(li * Spin<D>(w_[i] + hdt * alpha_[i]), n);
+      k.dxi = dt * (v_[i] - spin_cross<D>(li * w_[i], n));
+      ContactHistory<D> h{wl_xi_[e]};
+      const ContactForce<D> cf = soft_contact_force<D>(c, k, h);
+      wl_xi_[e] = h.xi;
+      f_[i] += cf.force;
+      tq_[i] += contact_torque<D>(n, cf.tangential, li);
+    }
+  }
+}
+
+template <int D>
+void TdmEngine<D>::forces() {
+  for (auto& a : acc_t_) a = Acc{};
+  auto body = [&](int t) {
+    spill_[t].clear();
+    if (rot_) {
+      if (uniform_) { pair_range<true, true>(t); wall_range<true, true>(t); }
+      else { pair_range<true, false>(t); wall_range<true, false>(t); }
+    } else {
+      if (uniform_) { pair_range<false, true>(t); wall_range<false, true>(t); }
+      else { pair_range<false, false>(t); wall_range<false, false>(t); }
+    }
+  };
+  if (T_ == 1) {
+    body(0);
+  } else {
+#pragma omp parallel num_threads(T_)
+    body(omp_get_thread_num());
+    for (int t = 0; t < T_; ++t)
+      for (const auto& s : spill_[t]) {
+        f_[s.j] += s.f;
+        if (rot_) tq_[s.j] += s.t;
+      }
+  }
+  for (const auto& a : acc_t_) {
+    pair_begun_ += a.new_pair;
+    wall_begun_ += a.new_wall;
+    max_rel_ = std::max(max_rel_, a.max_rel);
+    max_abs_ = std::max(max_abs_, a.max_abs);
+  }
+}
+
+// Closes step n (v(t) from the new forces) and opens step n + 1 in one pass:
+// v(t + h/2) = v(t - h/2) + h a(t), x += h v(t + h/2). The per-thread flag records whether some
+// particle has moved more than half the skin since the last rebuild.
+template <int D>
+void TdmEngine<D>::integrate(int t) {
+  bool moved = false;
+  const double dt = dt_;
+  for (std::uint32_t i = lo_[t]; i < hi_[t]; ++i) {
+    const Vec<D> a = f_[i] * minv_[i] + g_;
+    f_[i].setZero();
+    acc_[i] = a;
+    v_[i] += dt * a;
+    x_[i] += dt * v_[i];
+    moved |= !((x_[i] - x0_[i]).squaredNorm() <= half_skin2_);  // NaN counts as moved
+    if (rot_) {
+      const Spin<D> al = tq_[i] * iinv_[i];
+      tq_[i].setZero();
+      alpha_[i] = al;
+      w_[i] += dt * al;
+    }
+  }
+  acc_t_[t].moved = moved;
+}
+
+template <int D>
+ThermoSample TdmEngine<D>::sample(double time) {
+  ThermoSample s;
+  s.time = time;
+  double mv2 = 0.0, rot = 0.0, pot = 0.0;
+  const double q = inertia_factor<D>();
+  for (std::size_t i = 0; i < N_; ++i) {
+    const Vec<D> v = v_full(i);
+    mv2 += m_[i] * v.squaredNorm();
+    rot += q * m_[i] * R_[i] * R_[i] * w_full(i).squaredNorm();
+    pot -= m_[i] * g_.dot(x_[i]);
+  }
+  // Elastic energy of the contacts and their virial sum r.F (the tangential force is normal to
+  // r and adds nothing).
+  double el = 0.0, vir = 0.0;
+  auto stored = [&](const SoftContact& c, double delta, const Vec<D>& xi) {
+    double u, kt = c.kt;
+    if (c.normal == NormalLaw::Linear) {
+      u = 0.5 * c.kn * delta * delta;  // F = k delta
+    } else {
+      u = 0.4 * c.kn * delta * delta * std::sqrt(delta);  // F = kn delta^3/2
+      kt *= std::sqrt(delta);
+    }
+    return u + 0.5 * kt * xi.squaredNorm();
+  };
+  for (std::size_t i = 0; i < N_; ++i)
+    for (std::uint32_t e = off_[i]; e < off_[i + 1]; ++e) {
+      const std::uint32_t j = nb_[e];
+      const Vec<D> dx = x_[i] - x_[j] + shifts_[sh_[e]];
+      const double Rs = R_[i] + R_[j], r = dx.norm();
+      if (r >= Rs) continue;
+      const SoftContact c = pair_coeffs(i, j);
+      const double delta = Rs - r;
+      el += stored(c, delta, rot_ ? xi_[e] : Vec<D>::Zero());
+      const double vn = (v_full(i) - v_full(j)).dot(dx) / r;
+      vir += r * normal_force(c, delta, -vn);
+    }
+  for (std::size_t e = 0; e < wl_i_.size(); ++e) {
+    const std::uint32_t i = wl_i_[e];
+    const auto& W = sys_.walls[wl_w_[e]];
+    const double delta = R_[i] - (x_[i] - W.point).dot(W.normal);
+    if (delta <= 0.0) continue;
+    el += stored(wall_coeffs(static_cast<int>(wl_w_[e]), i), delta, rot_ ? wl_xi_[e] : Vec<D>::Zero());
+  }
+  s.kinetic_energy = 0.5 * mv2;
+  s.rotational_energy = 0.5 * rot;
+  s.potential_energy = pot;
+  s.elastic_energy = el;
+  s.temperature = N_ > 0 ? mv2 / (D * static_cast<double>(N_)) : 0.0;
+  s.collisions = pair_begun_ + wall_begun_;
+  s.pressure = (mv2 + vir) / (D * sys_.volume());
+  return s;
+}
+
+template <int D>
+Snapshot<D> TdmEngine<D>::snapshot(double time) const {
+  Snapshot<D> s;
+  s.time = time;
+  s.x.resize(N_);
+  s.v.resize(N_);
+  s.radius.resize(N_);
+  s.w.resize(N_);
+  for (std::size_t i = 0; i < N_; ++i) {
+    const std::uint32_t k = id_[i];
+    s.x[k] = x_[i];
+    s.v[k] = v_full(i);
+    s.w[k] = w_full(i);
+    s.radius[k] = R_[i];
+  }
+  return s;
+}
+
+template <int D>
+RunResult<D> TdmEngine<D>::run() {
+  const auto t0 = Clock::now();
+  setup();
+  RunResult<D> res;
+  res.method = "tdm";
+  const std::uint64_t nsteps = N_ == 0 ? 0 : static_cast<std::uint64_t>(std::llround(set_.end_time / dt_));
+  auto step_of = [&](double interval, std::uint64_t k) {
+    return static_cast<std::uint64_t>(std::llround(static_cast<double>(k) * interval / dt_));
+  };
+  bool want_snap = false;
+  for (auto* o : obs_) want_snap = want_snap || o->wants_snapshots();
+  want_snap = want_snap && set_.snapshot_interval > 0.0;
+  std::uint64_t k_sample = 1, k_snap = 1;
+  auto emit = [&](std::uint64_t n, bool last) {
+    const double t = static_cast<double>(n) * dt_;
+    bool do_sample = n == 0 || last;
+    if (set_.thermo_interval > 0.0 && n > 0) {
+      while (step_of(set_.thermo_interval, k_sample) <= n) {
+        do_sample = true;
+        ++k_sample;
+      }
+    }
+    if (do_sample) {
+      const ThermoSample s = sample(t);
+      for (auto* o : obs_) o->on_sample(s);
+    }
+    if (want_snap) {
+      bool do_snap = n == 0 || last;
+      while (n > 0 && step_of(set_.snapshot_interval, k_snap) <= n) {
+        do_snap = true;
+        ++k_snap;
+      }
+      if (do_snap) {
+        const Snapshot<D> s = snapshot(t);
+        for (auto* o : obs_)
+          if (o->wants_snapshots()) o->on_snapshot(s);
+      }
+    }
+  };
+
+  if (N_ > 0) {
+    rebuild();
+    if (status_ == "ok") {
+      forces();
+      // v holds v(t - h/2) between steps.
+      for (std::size_t i = 0; i < N_; ++i) v_[i] -= hdt_ * (f_[i] * minv_[i] + g_);
+      if (rot_)
+        for (std::size_t i = 0; i < N_; ++i) w_[i] -= hdt_ * (tq_[i] * iinv_[i]);
+      emit(0, nsteps == 0);
+    }
+  }
+  while (status_ == "ok" && steps_ < nsteps) {
+    if (steps_ >= set_.max_steps) {
+      status_ = "max_steps";
+      message_ = fmt::format("stopped after run.max_steps = {} steps at t = {}", steps_, steps_ * dt_);
+      break;
+    }
+    if (T_ == 1) {
+      integrate(0);
+    } else {
+#pragma omp parallel num_threads(T_)
+      integrate(omp_get_thread_num());
+    }
+    ++steps_;
+    bool moved = false;
+    for (const auto& a : acc_t_) moved = moved || a.moved;
+    if (moved) {
+      rebuild();
+      if (status_ != "ok") break;
+    }
+    forces();
+    if (!(max_rel_ <= set_.unstable_overlap)) {
+      status_ = "unstable";
+      message_ = fmt::format("an overlap reached {:.3g} of the contact distance at t = {}: the time step {} is too "
+                             "long for the contact stiffness (stability limit {:.6g}; default step {:.6g})",
+                             max_rel_, steps_ * dt_, dt_, plan_.max_stable_dt, plan_.default_dt);
+    }
+    emit(steps_, steps_ == nsteps || status_ != "ok");
+    if ((steps_ & 1023) == 0)
+      for (auto* o : obs_) o->on_progress(steps_ * dt_, steps_);
+  }
+
+  res.status = status_;
+  res.message = message_;
+  res.time = static_cast<double>(steps_) * dt_;
+  res.counts.pair = pair_begun_;
+  res.counts.wall = wall_begun_;
+  res.x.resize(N_);
+  res.v.resize(N_);
+  res.radius.resize(N_);
+  res.w.resize(N_);
+  for (std::size_t i = 0; i < N_; ++i) {
+    const std::uint32_t k = id_[i];
+    res.x[k] = x_[i];
+    res.v[k] = v_full(i);
+    res.w[k] = w_full(i);
+    res.radius[k] = R_[i];
+  }
+  res.max_overlap = max_abs_;
+  res.max_overlap_relative = max_rel_;
+  SoftStats& s = res.soft;
+  s.steps = steps_;
+  s.dt = dt_;
+  s.default_dt = plan_.default_dt;
+  s.max_stable_dt = plan_.max_stable_dt;
+  s.contact_time = plan_.contact_time;
+  s.rayleigh_time = plan_.rayleigh_time;
+  s.impact_speed = plan_.impact_speed;
+  s.skin = skin_;
+  s.rebuilds = rebuilds_;
+  for (auto f : touch_) s.contacts += f;
+  for (auto f : wl_touch_) s.contacts += f;
+  s.threads = T_;
+  res.wall_seconds = std::chrono::duration<double>(Clock::now() - t0).count();
+  s.particle_steps_per_second =
+      static_cast<double>(N_) * static_cast<double>(steps_) / std::max(res.wall_seconds, 1e-9);
+  return res;
+}
+
+}  // namespace
+
+template <int D>
+RunResult<D> run_tdm(System<D> system, const TdmSettings& settings, const std::vector<Observer<D>*>& observers) {
+  TdmEngine<D> engine(system, settings, observers);
+  return engine.run();
+}
+
+template <int D>
+SoftPlan tdm_preflight(const System<D>& system, const TdmSettings& settings) {
+  return preflight(system, settings);
+}
+
+template SoftPlan tdm_preflight<2>(const System<2>&, const TdmSettings&);
+template SoftPlan tdm_preflight<3>(const System<3>&, const TdmSettings&);
+template RunResult<2> run_tdm<2>(System<2>, const TdmSettings&, const std::vector<Observer<2>*>&);
+template RunResult<3> run_tdm<3>(System<3>, const TdmSettings&, const std::vector<Observer<3>*>&);
+
+}  // namespace matep

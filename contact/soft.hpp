@@ -453,41 +453,66 @@ inline Spin<D> contact_torque(const Vec<D>& n, const Vec<D>& Ft, double arm) {
 
 // Force on i for one contact; updates the history. Tangential model (Cundall & Strack,
 // Geotechnique 29, 47 (1979); Mindlin-Deresiewicz stiffness for Hertz, REFERENCES 6.2):
-//  1. rotate xi into the current tangent plane, keeping its length (LIGGGHTS shear history);
+//  1. rotate xi into the current tangent plane, keeping its length (LIGGGHTS shear history):
+//     xi <- (xi - (xi.n) n) |xi|/|xi - (xi.n) n|;
 //  2. xi += tangential part of dxi;
 //  3. trial F_t = -k_t xi - gamma_t v_t;
 //  4. if |F_t| > mu |F_n|: F_t <- mu |F_n| F_t/|F_t| (sliding), and the spring is rescaled so
 //     that it alone carries the cap, xi = -F_t/k_t (the dashpot does no work while sliding).
-template <int D>
-inline ContactForce<D> soft_contact_force(const SoftContact& c, const ContactKinematics<D>& k,
-                                          ContactHistory<D>& h) {
+// Law is the normal law known at compile time (the engine's hot loop); soft_contact_force()
+// below dispatches on c.normal at run time.
+template <int D, NormalLaw Law>
+[[gnu::always_inline]] inline ContactForce<D> soft_contact_force_law(const SoftContact& c,
+                                                                     const ContactKinematics<D>& k,
+                                                                     ContactHistory<D>& h) {
   ContactForce<D> out;
   const Vec<D>& n = k.n;
   const double delta = k.delta > 0.0 ? k.delta : 0.0;
   const double vn = k.v.dot(n);
-  out.normal_raw = normal_force_raw(c, delta, -vn);
-  out.normal = (c.clip && out.normal_raw < 0.0) ? 0.0 : out.normal_raw;
-
-  // Stiffness and damping at this overlap.
-  double kt = c.kt, gt = c.gt;
-  if (c.normal != NormalLaw::Linear) {
+  // Normal force and the tangential coefficients at this overlap (see SoftContact).
+  double fn, kt = c.kt, gt = c.gt;
+  if constexpr (Law == NormalLaw::Linear) {
+    fn = c.kn * delta - c.gn * vn;
+  } else {
     const double s = std::sqrt(delta);
     kt *= s;
-    gt *= c.normal == NormalLaw::Hertz ? std::sqrt(s) : s;
+    if constexpr (Law == NormalLaw::Hertz) {
+      const double s4 = std::sqrt(s);
+      fn = c.kn * delta * s - c.gn * s4 * vn;
+      gt *= s4;
+    } else {
+      fn = c.kn * delta * s - c.gn * s * vn;
+      gt *= s;
+    }
+  }
+  out.normal_raw = fn;
+  out.normal = (c.clip && fn < 0.0) ? 0.0 : fn;
+  if (c.mu == 0.0 && h.xi.isZero(0.0)) {  // frictionless: no tangential force, no history
+    out.force = out.normal * n;
+    return out;
   }
 
   Vec<D> xi = h.xi;
   const double xin = xi.dot(n);
   if (xin != 0.0) {
-    const double len = xi.norm();
+    const double l2 = xi.squaredNorm();
     xi -= xin * n;
-    xi -=
-        xi.dot(n) * n;  // twice: the first pass leaves round-off along n when xi was nearly normal
-    const double len2 = xi.norm();
-    xi = len2 > 0.0 ? Vec<D>(xi * (len / len2)) : Vec<D>::Zero();
+    // Keep the length: multiply by 1/sqrt(1 - r), r = xin^2/l2. Between two steps the normal turns
+    // by a tiny angle and r ~ angle^2; the series 1 + r/2 + 3r^2/8 errs by less than 5r^3/16.
+    const double r = xin * xin / l2;
+    if (r < 1e-4) {
+      xi *= 1.0 + r * (0.5 + 0.375 * r);
+    } else {
+      const double m2 = xi.squaredNorm();
+      if (m2 > 0.0) {
+        xi *= std::sqrt(l2 / m2);
+      } else {
+        xi.setZero();
+      }
+    }
   }
   xi += k.dxi - k.dxi.dot(n) * n;
-  xi -= xi.dot(n) * n;  // round-off of a nearly normal dxi
+  xi -= xi.dot(n) * n;  // round-off of a nearly normal dxi or of the rescaling
   const Vec<D> vt = k.v - vn * n;
   Vec<D> Ft = -kt * xi - gt * vt;
   const double cap = c.mu * std::abs(out.normal);
@@ -502,6 +527,20 @@ inline ContactForce<D> soft_contact_force(const SoftContact& c, const ContactKin
   out.tangential = Ft;
   out.force = out.normal * n + Ft;
   return out;
+}
+
+template <int D>
+inline ContactForce<D> soft_contact_force(const SoftContact& c, const ContactKinematics<D>& k,
+                                          ContactHistory<D>& h) {
+  switch (c.normal) {
+    case NormalLaw::Linear:
+      return soft_contact_force_law<D, NormalLaw::Linear>(c, k, h);
+    case NormalLaw::Hertz:
+      return soft_contact_force_law<D, NormalLaw::Hertz>(c, k, h);
+    case NormalLaw::Viscoelastic:
+      break;
+  }
+  return soft_contact_force_law<D, NormalLaw::Viscoelastic>(c, k, h);
 }
 
 }  // namespace matep

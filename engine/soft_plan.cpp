@@ -146,6 +146,7 @@ SoftPlan plan_soft(const System<D>& sys) {
   }
   if (first < 0) return plan;  // no particles
   const NormalLaw K = kind[first];
+  plan.law = K;
   for (int a = 0; a < M; ++a) {
     const Material& m = sys.materials[a];
     if (!wall_used[a] || used[a] || m.contact.empty()) continue;

@@ -19,6 +19,7 @@ inline constexpr double kSoftStepFraction = 0.02;
 
 struct SoftPlan {
   int materials = 0;
+  NormalLaw law = NormalLaw::Hertz;  // the one normal law of every pair and wall contact
   // laws[a * materials + b]: resolved law (damping ratio fixed) between particle materials a, b.
   std::vector<SoftLaw> laws;
   // Elastic constants per material (young = 0 where the law does not need them).

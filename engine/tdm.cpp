@@ -47,12 +47,21 @@ class TdmEngine {
   // ---- neighbour lists ----
   void rebuild();
   std::uint8_t image_index(Vec<D>& dx) const;
+  void build_stencil();
   // ---- forces ----
-  void forces();
-  template <bool Rot, bool Uniform>
+  struct alignas(64) Acc {
+    std::uint64_t new_pair = 0, new_wall = 0;
+    double max_rel = 0.0, max_abs = 0.0;
+    bool moved = false;
+  };
+  void forces(bool fuse);
+  template <bool Rot, bool Uniform, NormalLaw Law, bool Fuse>
   void pair_range(int t);
-  template <bool Rot, bool Uniform>
-  void wall_range(int t);
+  template <bool Rot, bool Uniform, NormalLaw Law>
+  void wall_contact_force(std::uint32_t e, Acc& acc);
+  template <NormalLaw Law, bool Fuse>
+  void force_body(int t);
+  bool integrate_one(std::uint32_t i);
   void integrate(int t);
   // ---- diagnostics ----
   ThermoSample sample(double time);
@@ -75,6 +84,7 @@ class TdmEngine {
   double dt_ = 0.0, hdt_ = 0.0, skin_ = 0.0, half_skin2_ = 0.0;
   int T_ = 1;
   bool rot_ = false, uniform_ = false;
+  NormalLaw law_ = NormalLaw::Linear;  // one law for the whole run (plan_soft checks)
   SoftContact cpair_;
   std::vector<SoftContact> cwall_;
   Vec<D> g_ = Vec<D>::Zero(), L_ = Vec<D>::Zero();
@@ -101,15 +111,25 @@ class TdmEngine {
   std::array<int, D> nc_{};
   Vec<D> cell_len_ = Vec<D>::Ones();
   std::vector<std::uint32_t> cell_of_, cell_start_, order_;
+  // Half stencil of each cell: neighbour cells of larger index (CSR) and the periodic image shift
+  // to add to x_i (kMinImage: decide per pair, for axes of fewer than three cells).
+  static constexpr std::uint8_t kMinImage = 255;
+  std::vector<std::uint32_t> st_off_, st_cell_;
+  std::vector<std::uint8_t> st_shift_;
+  std::uint8_t centre_shift_ = 0;
+  bool ambiguous_ = false;  // some periodic axis has fewer than three cells
+  std::vector<Vec<D>> scratch_vec_;
+  std::vector<Spin<D>> scratch_spin_;
+  std::vector<double> scratch_dbl_;
+  std::vector<int> scratch_int_;
+  std::vector<std::uint32_t> scratch_u32_;
 
   // Threads: particle ranges and per-thread accumulators.
   std::vector<std::uint32_t> lo_, hi_, wlo_, whi_;
   std::vector<std::vector<Spill<D>>> spill_;
-  struct alignas(64) Acc {
-    std::uint64_t new_pair = 0, new_wall = 0;
-    double max_rel = 0.0, max_abs = 0.0;
-    bool moved = false;
-  };
+  // boundary_[i]: i receives forces from a lower thread range (integrated after the spills).
+  std::vector<std::uint8_t> boundary_;
+  std::vector<std::uint32_t> boundary_list_;
   std::vector<Acc> acc_t_;
 
   std::uint64_t steps_ = 0, rebuilds_ = 0, pair_begun_ = 0, wall_begun_ = 0;
@@ -164,6 +184,7 @@ void TdmEngine<D>::setup() {
   L_ = sys_.upper - sys_.lower;
   g_ = sys_.gravity;
   rot_ = plan_.friction;
+  law_ = plan_.law;
 
   x_ = sys_.x;
   v_ = sys_.v;
@@ -214,6 +235,7 @@ void TdmEngine<D>::setup() {
     nc_[k] = std::min(nc_[k], 1 << 20);
     cell_len_[k] = L_[k] / nc_[k];
   }
+  build_stencil();
 
   // Threads: contiguous particle ranges, at least a few hundred particles each.
   int T = set_.threads > 0 ? set_.threads : omp_get_max_threads();
@@ -246,6 +268,66 @@ std::uint8_t TdmEngine<D>::image_index(Vec<D>& dx) const {
     s += (sk + 1) * p;
   }
   return static_cast<std::uint8_t>(s);
+}
+
+// For every cell, the neighbour cells of larger index (each once) with the image shift that
+// brings x_i next to them: a neighbour reached by wrapping around the upper face of a periodic
+// axis lies at its image x_j + L, i.e. dx = x_i - x_j - L.
+template <int D>
+void TdmEngine<D>::build_stencil() {
+  std::size_t ncell = 1;
+  for (int k = 0; k < D; ++k) ncell *= static_cast<std::size_t>(nc_[k]);
+  bool ambiguous = false;
+  for (int k = 0; k < D; ++k) ambiguous = ambiguous || (sys_.periodic[k] && nc_[k] < 3);
+  ambiguous_ = ambiguous;
+  {
+    int cs = 0;
+    for (int k = 0, p = 1; k < D; ++k, p *= 3) cs += p;  // index of the zero shift
+    centre_shift_ = static_cast<std::uint8_t>(cs);
+  }
+  st_off_.assign(ncell + 1, 0);
+  st_cell_.clear();
+  st_shift_.clear();
+  std::vector<std::pair<std::uint32_t, std::uint8_t>> found;
+  std::array<int, D> cc{};
+  for (std::size_t c = 0; c < ncell; ++c) {
+    std::size_t r = c;
+    for (int k = 0; k < D; ++k) {
+      cc[k] = static_cast<int>(r % nc_[k]);
+      r /= nc_[k];
+    }
+    found.clear();
+    const int nstencil = D == 3 ? 27 : 9;
+    for (int s = 0; s < nstencil; ++s) {
+      int rr = s, shift = 0;
+      std::size_t idx = 0, p = 1;
+      bool ok = true;
+      for (int k = 0, p3 = 1; k < D; ++k, p3 *= 3) {
+        int ck = cc[k] + (rr % 3) - 1;
+        rr /= 3;
+        int sk = 0;
+        if (ck < 0 || ck >= nc_[k]) {
+          if (!sys_.periodic[k]) { ok = false; break; }
+          sk = ck < 0 ? 1 : -1;  // wrapped below: the image is x_j - L, so dx gains +L
+          ck = (ck + nc_[k]) % nc_[k];
+        }
+        shift += (sk + 1) * p3;
+        idx += static_cast<std::size_t>(ck) * p;
+        p *= static_cast<std::size_t>(nc_[k]);
+      }
+      if (ok && idx > c)
+        found.push_back({static_cast<std::uint32_t>(idx), ambiguous ? kMinImage : static_cast<std::uint8_t>(shift)});
+    }
+    std::sort(found.begin(), found.end());
+    found.erase(std::unique(found.begin(), found.end(),
+                            [](const auto& a, const auto& b) { return a.first == b.first; }),
+                found.end());
+    for (const auto& [c2, sh] : found) {
+      st_cell_.push_back(c2);
+      st_shift_.push_back(sh);
+    }
+    st_off_[c + 1] = static_cast<std::uint32_t>(st_cell_.size());
+  }
 }
 
 template <int D>
@@ -312,67 +394,60 @@ void TdmEngine<D>::rebuild() {
     std::vector<std::uint32_t> fill(cell_start_.begin(), cell_start_.end() - 1);
     for (std::size_t i = 0; i < N_; ++i) order_[fill[cell_of_[i]]++] = static_cast<std::uint32_t>(i);
   }
-  auto permute = [&](auto& a) {
-    using A = std::remove_reference_t<decltype(a)>;
-    A b(a.size());
-    for (std::size_t k = 0; k < N_; ++k) b[k] = a[order_[k]];
-    a.swap(b);
+  auto permute = [&](auto& a, auto& scratch) {
+    scratch.resize(N_);
+    for (std::size_t k = 0; k < N_; ++k) scratch[k] = a[order_[k]];
+    a.swap(scratch);
   };
-  permute(x_); permute(v_); permute(acc_); permute(f_); permute(w_); permute(alpha_); permute(tq_);
-  permute(R_); permute(m_); permute(minv_); permute(iinv_); permute(mat_); permute(id_);
+  permute(x_, scratch_vec_); permute(v_, scratch_vec_); permute(acc_, scratch_vec_);
+  permute(w_, scratch_spin_);
+  if (rot_) { permute(alpha_, scratch_spin_); }
+  permute(R_, scratch_dbl_); permute(m_, scratch_dbl_); permute(minv_, scratch_dbl_); permute(iinv_, scratch_dbl_);
+  permute(mat_, scratch_int_); permute(id_, scratch_u32_);
+  // f_ and tq_ are zero between steps (integrate() clears them), so they need no permutation.
   x0_ = x_;
 
-  // 4. Half list: pairs within R_i + R_j + skin, each once (own cell: j > i; other cells: only
-  // neighbour cells with a larger index, after removing duplicates from periodic wrap).
+  // 4. Half list: pairs within R_i + R_j + skin, each once: in the own cell j > i, and the
+  // neighbour cells of larger index from the stencil built in setup(). Storage is sorted by cell,
+  // so j > i for every entry.
   off_.assign(N_ + 1, 0);
   nb_.clear();
   sh_.clear();
-  std::array<int, D> cc{};
-  std::vector<std::uint32_t> ncells;
-  std::vector<std::uint32_t> cell_ids(N_);
-  for (std::size_t c = 0; c < ncell; ++c)
-    for (std::uint32_t i = cell_start_[c]; i < cell_start_[c + 1]; ++i) cell_ids[i] = static_cast<std::uint32_t>(c);
   for (std::size_t c = 0; c < ncell; ++c) {
-    // Neighbour cells of c with larger index.
-    std::size_t r = c;
-    for (int k = 0; k < D; ++k) {
-      cc[k] = static_cast<int>(r % nc_[k]);
-      r /= nc_[k];
-    }
-    ncells.clear();
-    const int nstencil = D == 3 ? 27 : 9;
-    for (int s = 0; s < nstencil; ++s) {
-      int rr = s;
-      std::size_t idx = 0, p = 1;
-      bool ok = true;
-      for (int k = 0; k < D; ++k) {
-        int ck = cc[k] + (rr % 3) - 1;
-        rr /= 3;
-        if (ck < 0 || ck >= nc_[k]) {
-          if (!sys_.periodic[k]) { ok = false; break; }
-          ck = (ck + nc_[k]) % nc_[k];
-        }
-        idx += static_cast<std::size_t>(ck) * p;
-        p *= static_cast<std::size_t>(nc_[k]);
-      }
-      if (ok && idx > c) ncells.push_back(static_cast<std::uint32_t>(idx));
-    }
-    std::sort(ncells.begin(), ncells.end());
-    ncells.erase(std::unique(ncells.begin(), ncells.end()), ncells.end());
-    for (std::uint32_t i = cell_start_[c]; i < cell_start_[c + 1]; ++i) {
-      const double Ri = R_[i];
-      auto test = [&](std::uint32_t j) {
-        Vec<D> dx = x_[i] - x_[j];
-        const std::uint8_t s = image_index(dx);
-        const double cut = Ri + R_[j] + skin_;
+    const std::uint32_t cb = cell_start_[c], ce = cell_start_[c + 1];
+    for (std::uint32_t i = cb; i < ce; ++i) {
+      const Vec<D> xi = x_[i];
+      const double Ri = R_[i] + skin_;
+      for (std::uint32_t j = i + 1; j < ce; ++j) {
+        const double cut = Ri + R_[j];
+        Vec<D> dx = xi - x_[j];
+        const std::uint8_t si = ambiguous_ ? image_index(dx) : centre_shift_;
         if (dx.squaredNorm() < cut * cut) {
           nb_.push_back(j);
-          sh_.push_back(s);
+          sh_.push_back(si);
         }
-      };
-      for (std::uint32_t j = i + 1; j < cell_start_[c + 1]; ++j) test(j);
-      for (std::uint32_t c2 : ncells)
-        for (std::uint32_t j = cell_start_[c2]; j < cell_start_[c2 + 1]; ++j) test(j);
+      }
+      for (std::uint32_t k = st_off_[c]; k < st_off_[c + 1]; ++k) {
+        const std::uint32_t c2 = st_cell_[k];
+        const std::uint8_t s = st_shift_[k];
+        const Vec<D> xs = xi + shifts_[s];
+        for (std::uint32_t j = cell_start_[c2]; j < cell_start_[c2 + 1]; ++j) {
+          const double cut = Ri + R_[j];
+          if (s != kMinImage) {
+            if ((xs - x_[j]).squaredNorm() < cut * cut) {
+              nb_.push_back(j);
+              sh_.push_back(s);
+            }
+          } else {  // an axis of fewer than three cells: the image is not fixed by the cell
+            Vec<D> dx = xi - x_[j];
+            const std::uint8_t si = image_index(dx);
+            if (dx.squaredNorm() < cut * cut) {
+              nb_.push_back(j);
+              sh_.push_back(si);
+            }
+          }
+        }
+      }
       off_[i + 1] = static_cast<std::uint32_t>(nb_.size());
     }
   }
@@ -413,20 +488,56 @@ void TdmEngine<D>::rebuild() {
     wlo_[t] = static_cast<std::uint32_t>(std::lower_bound(wl_i_.begin(), wl_i_.end(), lo_[t]) - wl_i_.begin());
     whi_[t] = static_cast<std::uint32_t>(std::lower_bound(wl_i_.begin(), wl_i_.end(), hi_[t]) - wl_i_.begin());
   }
+  // 6. Particles that receive forces from a lower thread range.
+  boundary_.assign(N_, 0);
+  boundary_list_.clear();
+  if (T_ > 1) {
+    for (int t = 0; t < T_; ++t)
+      for (std::uint32_t e = off_[lo_[t]]; e < off_[hi_[t]]; ++e)
+        if (nb_[e] >= hi_[t]) boundary_[nb_[e]] = 1;
+    for (std::uint32_t i = 0; i < N_; ++i)
+      if (boundary_[i]) boundary_list_.push_back(i);
+  }
 }
 
 // Pair forces of the particles in thread t's range. Forces on a partner outside the range are
 // spilled; the touching flag counts contacts begun.
+// Normal force of a law known at compile time at overlap delta and normal velocity vn (< 0 while
+// approaching), clipped at zero unless the law may pull (contact/soft.hpp, normal_force()).
+template <NormalLaw Law>
+[[gnu::always_inline]] inline double normal_force_of(const SoftContact& c, double delta, double vn) {
+  double f;
+  if constexpr (Law == NormalLaw::Linear) {
+    f = c.kn * delta - c.gn * vn;
+  } else if constexpr (Law == NormalLaw::Hertz) {
+    const double s = std::sqrt(delta);
+    f = c.kn * delta * s - c.gn * std::sqrt(s) * vn;
+  } else {
+    const double s = std::sqrt(delta);
+    f = c.kn * delta * s - c.gn * s * vn;
+  }
+  return (c.clip && f < 0.0) ? 0.0 : f;
+}
+
 template <int D>
-template <bool Rot, bool Uniform>
+template <bool Rot, bool Uniform, NormalLaw Law, bool Fuse>
 void TdmEngine<D>::pair_range(int t) {
   Acc& acc = acc_t_[t];
   auto& spill = spill_[t];
   const std::uint32_t lo = lo_[t], hi = hi_[t];
   const double dt = dt_, hdt = hdt_;
+  std::uint32_t ew = wlo_[t];  // wall entries are sorted by particle
+  bool moved = false;
   for (std::uint32_t i = lo; i < hi; ++i) {
     const Vec<D> xi = x_[i];
     const double Ri = R_[i];
+    // i's half-step and predicted velocities, loaded once (the partner loop writes forces).
+    const Vec<D> vhi = v_[i], vpi = v_[i] + hdt * acc_[i];
+    Spin<D> whi = Spin<D>::Zero(), wpi = Spin<D>::Zero();
+    if constexpr (Rot) {
+      whi = w_[i];
+      wpi = w_[i] + hdt * alpha_[i];
+    }
     Vec<D> fi = Vec<D>::Zero();
     Spin<D> ti = Spin<D>::Zero();
     const std::uint32_t end = off_[i + 1];
@@ -455,26 +566,26 @@ void TdmEngine<D>::pair_range(int t) {
       }
       const SoftContact c = Uniform ? cpair_ : pair_coeffs(i, j);
       // Predicted velocities at the new time: v(t + h/2) + h/2 a(t).
-      const Vec<D> vi = v_[i] + hdt * acc_[i];
       const Vec<D> vj = v_[j] + hdt * acc_[j];
       Vec<D> F;
       Spin<D> tj = Spin<D>::Zero();
       if constexpr (!Rot) {
-        const double vn = (vi - vj).dot(n);
-        F = normal_force(c, delta, -vn) * n;
+        F = normal_force_of<Law>(c, delta, (vpi - vj).dot(n)) * n;
       } else {
         const double li = pair_lever_arm(Ri, delta), lj = pair_lever_arm(R_[j], delta);
         ContactKinematics<D> k;
         k.delta = delta;
         k.n = n;
-        k.v = contact_velocity<D>(vi, w_[i] + hdt * alpha_[i], li, vj, w_[j] + hdt * alpha_[j], lj, n);
-        k.dxi = dt * contact_velocity<D>(v_[i], w_[i], li, v_[j], w_[j], lj, n);
+        k.v = contact_velocity<D>(vpi, wpi, li, vj, w_[j] + hdt * alpha_[j], lj, n);
+        k.dxi = dt * contact_velocity<D>(vhi, whi, li, v_[j], w_[j], lj, n);
         ContactHistory<D> h{xi_[e]};
-        const ContactForce<D> cf = soft_contact_force<D>(c, k, h);
+        const ContactForce<D> cf = soft_contact_force_law<D, Law>(c, k, h);
         xi_[e] = h.xi;
         F = cf.force;
-        ti += contact_torque<D>(n, cf.tangential, li);
-        tj = contact_torque<D>(n, cf.tangential, lj);
+        // tau = -l n x F_t on both bodies (contact/soft.hpp conventions).
+        const Spin<D> m = lever_moment<D>(n, cf.tangential);
+        ti -= li * m;
+        tj = -lj * m;
       }
       fi += F;
       if (j >= lo && j < hi) {
@@ -486,65 +597,88 @@ void TdmEngine<D>::pair_range(int t) {
     }
     f_[i] += fi;
     if constexpr (Rot) tq_[i] += ti;
+    for (; ew < whi_[t] && wl_i_[ew] == i; ++ew) wall_contact_force<Rot, Uniform, Law>(ew, acc);
+    // Every pair entry has j > i (storage is sorted by cell), so i's force is complete here unless
+    // a lower thread range still adds to it: integrate it now and never read it again this step.
+    if constexpr (Fuse) {
+      if (!boundary_[i]) moved |= integrate_one(i);
+    }
   }
+  acc.moved = moved;
 }
 
 template <int D>
-template <bool Rot, bool Uniform>
-void TdmEngine<D>::wall_range(int t) {
-  Acc& acc = acc_t_[t];
+template <bool Rot, bool Uniform, NormalLaw Law>
+inline void TdmEngine<D>::wall_contact_force(std::uint32_t e, Acc& acc) {
   const double dt = dt_, hdt = hdt_;
-  for (std::uint32_t e = wlo_[t]; e < whi_[t]; ++e) {
-    const std::uint32_t i = wl_i_[e];
-    const auto& W = sys_.walls[wl_w_[e]];
-    const Vec<D>& n = W.normal;
-    const double delta = R_[i] - (x_[i] - W.point).dot(n);
-    if (delta <= 0.0) {
-      if (wl_touch_[e]) {
-        wl_touch_[e] = 0;
-        if constexpr (Rot) wl_xi_[e].setZero();
-      }
-      continue;
+  const std::uint32_t i = wl_i_[e];
+  const auto& W = sys_.walls[wl_w_[e]];
+  const Vec<D>& n = W.normal;
+  const double delta = R_[i] - (x_[i] - W.point).dot(n);
+  if (delta <= 0.0) {
+    if (wl_touch_[e]) {
+      wl_touch_[e] = 0;
+      if constexpr (Rot) wl_xi_[e].setZero();
     }
-    if (!wl_touch_[e]) {
-      wl_touch_[e] = 1;
-      ++acc.new_wall;
-    }
-    if (delta > acc.max_rel * R_[i]) {
-      acc.max_rel = delta / R_[i];
-      acc.max_abs = std::max(acc.max_abs, delta);
-    }
-    const SoftContact c = Uniform ? cwall_[wl_w_[e]] : wall_coeffs(static_cast<int>(wl_w_[e]), i);
-    const Vec<D> vi = v_[i] + hdt * acc_[i];
-    if constexpr (!Rot) {
-      f_[i] += normal_force(c, delta, -vi.dot(n)) * n;
-    } else {
-      const double li = wall_lever_arm(R_[i], delta);
-      ContactKinematics<D> k;
-      k.delta = delta;
-      k.n = n;
-      k.v = vi - spin_cross<D>(li * Spin<D>(w_[i] + hdt * alpha_[i]), n);
-      k.dxi = dt * (v_[i] - spin_cross<D>(li * w_[i], n));
-      ContactHistory<D> h{wl_xi_[e]};
-      const ContactForce<D> cf = soft_contact_force<D>(c, k, h);
-      wl_xi_[e] = h.xi;
-      f_[i] += cf.force;
-      tq_[i] += contact_torque<D>(n, cf.tangential, li);
-    }
+    return;
+  }
+  if (!wl_touch_[e]) {
+    wl_touch_[e] = 1;
+    ++acc.new_wall;
+  }
+  if (delta > acc.max_rel * R_[i]) {
+    acc.max_rel = delta / R_[i];
+    acc.max_abs = std::max(acc.max_abs, delta);
+  }
+  const SoftContact c = Uniform ? cwall_[wl_w_[e]] : wall_coeffs(static_cast<int>(wl_w_[e]), i);
+  const Vec<D> vi = v_[i] + hdt * acc_[i];
+  if constexpr (!Rot) {
+    f_[i] += normal_force_of<Law>(c, delta, vi.dot(n)) * n;
+  } else {
+    const double li = wall_lever_arm(R_[i], delta);
+    ContactKinematics<D> k;
+    k.delta = delta;
+    k.n = n;
+    k.v = vi - spin_cross<D>(li * Spin<D>(w_[i] + hdt * alpha_[i]), n);
+    k.dxi = dt * (v_[i] - spin_cross<D>(li * w_[i], n));
+    ContactHistory<D> h{wl_xi_[e]};
+    const ContactForce<D> cf = soft_contact_force_law<D, Law>(c, k, h);
+    wl_xi_[e] = h.xi;
+    f_[i] += cf.force;
+    tq_[i] += contact_torque<D>(n, cf.tangential, li);
   }
 }
 
 template <int D>
-void TdmEngine<D>::forces() {
+template <NormalLaw Law, bool Fuse>
+void TdmEngine<D>::force_body(int t) {
+  spill_[t].clear();
+  if (rot_) {
+    if (uniform_) pair_range<true, true, Law, Fuse>(t);
+    else pair_range<true, false, Law, Fuse>(t);
+  } else {
+    if (uniform_) pair_range<false, true, Law, Fuse>(t);
+    else pair_range<false, false, Law, Fuse>(t);
+  }
+}
+
+// Forces at the current positions. With fuse, each particle is also integrated to the next step
+// as soon as its force is complete (integrate_one); the particles that receive forces from a
+// lower thread range (boundary_) are integrated after the spills are added.
+template <int D>
+void TdmEngine<D>::forces(bool fuse) {
   for (auto& a : acc_t_) a = Acc{};
   auto body = [&](int t) {
-    spill_[t].clear();
-    if (rot_) {
-      if (uniform_) { pair_range<true, true>(t); wall_range<true, true>(t); }
-      else { pair_range<true, false>(t); wall_range<true, false>(t); }
-    } else {
-      if (uniform_) { pair_range<false, true>(t); wall_range<false, true>(t); }
-      else { pair_range<false, false>(t); wall_range<false, false>(t); }
+    switch (law_) {
+      case NormalLaw::Linear:
+        fuse ? force_body<NormalLaw::Linear, true>(t) : force_body<NormalLaw::Linear, false>(t);
+        break;
+      case NormalLaw::Hertz:
+        fuse ? force_body<NormalLaw::Hertz, true>(t) : force_body<NormalLaw::Hertz, false>(t);
+        break;
+      case NormalLaw::Viscoelastic:
+        fuse ? force_body<NormalLaw::Viscoelastic, true>(t) : force_body<NormalLaw::Viscoelastic, false>(t);
+        break;
     }
   };
   if (T_ == 1) {
@@ -557,6 +691,11 @@ void TdmEngine<D>::forces() {
         f_[s.j] += s.f;
         if (rot_) tq_[s.j] += s.t;
       }
+    if (fuse) {
+      bool moved = false;
+      for (std::uint32_t i : boundary_list_) moved |= integrate_one(i);
+      acc_t_[0].moved = acc_t_[0].moved || moved;
+    }
   }
   for (const auto& a : acc_t_) {
     pair_begun_ += a.new_pair;
@@ -566,27 +705,30 @@ void TdmEngine<D>::forces() {
   }
 }
 
-// Closes step n (v(t) from the new forces) and opens step n + 1 in one pass:
-// v(t + h/2) = v(t - h/2) + h a(t), x += h v(t + h/2). The per-thread flag records whether some
-// particle has moved more than half the skin since the last rebuild.
+// Closes step n for particle i (v(t) from its new force) and opens step n + 1:
+// v(t + h/2) = v(t - h/2) + h a(t), x += h v(t + h/2). Returns whether it has moved more than half
+// the skin since the last rebuild (a non-finite position counts as moved).
+template <int D>
+inline bool TdmEngine<D>::integrate_one(std::uint32_t i) {
+  const double dt = dt_;
+  const Vec<D> a = f_[i] * minv_[i] + g_;
+  f_[i].setZero();
+  acc_[i] = a;
+  v_[i] += dt * a;
+  x_[i] += dt * v_[i];
+  if (rot_) {
+    const Spin<D> al = tq_[i] * iinv_[i];
+    tq_[i].setZero();
+    alpha_[i] = al;
+    w_[i] += dt * al;
+  }
+  return !((x_[i] - x0_[i]).squaredNorm() <= half_skin2_);
+}
+
 template <int D>
 void TdmEngine<D>::integrate(int t) {
   bool moved = false;
-  const double dt = dt_;
-  for (std::uint32_t i = lo_[t]; i < hi_[t]; ++i) {
-    const Vec<D> a = f_[i] * minv_[i] + g_;
-    f_[i].setZero();
-    acc_[i] = a;
-    v_[i] += dt * a;
-    x_[i] += dt * v_[i];
-    moved |= !((x_[i] - x0_[i]).squaredNorm() <= half_skin2_);  // NaN counts as moved
-    if (rot_) {
-      const Spin<D> al = tq_[i] * iinv_[i];
-      tq_[i].setZero();
-      alpha_[i] = al;
-      w_[i] += dt * al;
-    }
-  }
+  for (std::uint32_t i = lo_[t]; i < hi_[t]; ++i) moved |= integrate_one(i);
   acc_t_[t].moved = moved;
 }
 
@@ -676,6 +818,11 @@ RunResult<D> TdmEngine<D>::run() {
   for (auto* o : obs_) want_snap = want_snap || o->wants_snapshots();
   want_snap = want_snap && set_.snapshot_interval > 0.0;
   std::uint64_t k_sample = 1, k_snap = 1;
+  // Whether step n needs the full-step state (a thermo row, a snapshot or the end).
+  auto due = [&](std::uint64_t n) {
+    return n == 0 || n >= nsteps || (set_.thermo_interval > 0.0 && step_of(set_.thermo_interval, k_sample) <= n) ||
+           (want_snap && step_of(set_.snapshot_interval, k_snap) <= n);
+  };
   auto emit = [&](std::uint64_t n, bool last) {
     const double t = static_cast<double>(n) * dt_;
     bool do_sample = n == 0 || last;
@@ -702,11 +849,28 @@ RunResult<D> TdmEngine<D>::run() {
       }
     }
   };
+  auto check_stable = [&] {
+    if (!(max_rel_ <= set_.unstable_overlap)) {
+      status_ = "unstable";
+      message_ = fmt::format("an overlap reached {:.3g} of the contact distance at t = {}: the time step {} is too "
+                             "long for the contact stiffness (stability limit {:.6g}; default step {:.6g})",
+                             max_rel_, steps_ * dt_, dt_, plan_.max_stable_dt, plan_.default_dt);
+    }
+  };
+  auto after_move = [&] {
+    ++steps_;
+    bool moved = false;
+    for (const auto& a : acc_t_) moved = moved || a.moved;
+    if (moved && status_ == "ok") rebuild();
+    if ((steps_ & 1023) == 0)
+      for (auto* o : obs_) o->on_progress(steps_ * dt_, steps_);
+  };
 
   if (N_ > 0) {
     rebuild();
     if (status_ == "ok") {
-      forces();
+      forces(false);
+      check_stable();
       // v holds v(t - h/2) between steps.
       for (std::size_t i = 0; i < N_; ++i) v_[i] -= hdt_ * (f_[i] * minv_[i] + g_);
       if (rot_)
@@ -714,35 +878,30 @@ RunResult<D> TdmEngine<D>::run() {
       emit(0, nsteps == 0);
     }
   }
+  // Loop invariant: positions at step steps_, forces there computed (by forces(false)).
   while (status_ == "ok" && steps_ < nsteps) {
-    if (steps_ >= set_.max_steps) {
-      status_ = "max_steps";
-      message_ = fmt::format("stopped after run.max_steps = {} steps at t = {}", steps_, steps_ * dt_);
-      break;
-    }
+    if (steps_ >= set_.max_steps) break;
     if (T_ == 1) {
       integrate(0);
     } else {
 #pragma omp parallel num_threads(T_)
       integrate(omp_get_thread_num());
     }
-    ++steps_;
-    bool moved = false;
-    for (const auto& a : acc_t_) moved = moved || a.moved;
-    if (moved) {
-      rebuild();
-      if (status_ != "ok") break;
+    after_move();
+    // Steps that need no full-step state: forces and integration in one pass.
+    while (status_ == "ok" && !due(steps_) && steps_ < set_.max_steps) {
+      forces(true);
+      check_stable();
+      after_move();
     }
-    forces();
-    if (!(max_rel_ <= set_.unstable_overlap)) {
-      status_ = "unstable";
-      message_ = fmt::format("an overlap reached {:.3g} of the contact distance at t = {}: the time step {} is too "
-                             "long for the contact stiffness (stability limit {:.6g}; default step {:.6g})",
-                             max_rel_, steps_ * dt_, dt_, plan_.max_stable_dt, plan_.default_dt);
-    }
-    emit(steps_, steps_ == nsteps || status_ != "ok");
-    if ((steps_ & 1023) == 0)
-      for (auto* o : obs_) o->on_progress(steps_ * dt_, steps_);
+    if (status_ != "ok") break;
+    forces(false);
+    check_stable();
+    emit(steps_, steps_ >= nsteps || status_ != "ok");
+  }
+  if (status_ == "ok" && steps_ < nsteps) {
+    status_ = "max_steps";
+    message_ = fmt::format("stopped after {} steps at t = {} (max_steps)", steps_, steps_ * dt_);
   }
 
   res.status = status_;

@@ -129,6 +129,9 @@ RunOutcome run_system(const Scene& scene, const System<D>& sys, const std::strin
   out.out_dir = dir;
   out.wall_seconds = res.wall_seconds;
   out.collisions = res.counts.collisions();
+  out.steps = res.soft.steps;
+  out.dt = res.soft.dt;
+  out.particle_steps_per_second = res.soft.particle_steps_per_second;
   return out;
 }
 

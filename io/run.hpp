@@ -13,10 +13,13 @@ struct RunOutcome {
   std::string message;  // why it stopped early (empty when ok)
   std::string out_dir;
   double wall_seconds = 0.0;
-  std::uint64_t collisions = 0;
+  std::uint64_t collisions = 0;  // EDM: collisions; TDM: contacts begun
+  std::uint64_t steps = 0;       // TDM: time steps taken
+  double dt = 0.0;               // TDM: time step
+  double particle_steps_per_second = 0.0;
 };
 
-// Progress callback: simulated time, fraction done, events so far.
+// Progress callback: simulated time, fraction done, events (EDM) or steps (TDM) so far.
 using ProgressFn = std::function<void(double time, double fraction, std::uint64_t events)>;
 
 // Throws SceneError / IoError / std::invalid_argument for problems found before the run starts.

@@ -111,14 +111,19 @@ int cmd_run(const std::vector<std::string>& rest) {
       last = now;
       const double el = std::chrono::duration<double>(now - start).count();
       const double eta = frac > 0.0 ? el * (1.0 - frac) / frac : 0.0;
-      fmt::print(stderr, "\r  t = {:.6g} ({:5.1f}%)  {:.3g} events/s  ETA {:.0f} s   ", t, 100.0 * frac,
-                 events / std::max(el, 1e-9), eta);
+      fmt::print(stderr, "\r  t = {:.6g} ({:5.1f}%)  {:.3g} {}/s  ETA {:.0f} s   ", t, 100.0 * frac,
+                 events / std::max(el, 1e-9), scene.method == "edm" ? "events" : "steps", eta);
     };
   }
   const matep::RunOutcome out = matep::run_scene(scene, dir, progress);
   if (tty) fmt::print(stderr, "\r{:78}\r", "");
-  fmt::print("matep: {} collisions in {:.3f} s wall; output written to {}/\n", out.collisions,
-             out.wall_seconds, out.out_dir);
+  if (scene.method == "edm")
+    fmt::print("matep: {} collisions in {:.3f} s wall; output written to {}/\n", out.collisions,
+               out.wall_seconds, out.out_dir);
+  else
+    fmt::print("matep: {} steps of {:.6g} ({} contacts begun) in {:.3f} s wall, {:.3g} particle-steps/s; "
+               "output written to {}/\n",
+               out.steps, out.dt, out.collisions, out.wall_seconds, out.particle_steps_per_second, out.out_dir);
   if (out.status != "ok") return fail(fmt::format("{} ({}): {}", out.status, scene.path, out.message), kExitStopped);
   return 0;
 }

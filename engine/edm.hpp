@@ -52,7 +52,7 @@ struct RunResult {
   double time = 0.0;          // simulated time reached
   EventCounts counts;
   double wall_seconds = 0.0;
-  double max_overlap = 0.0;           // largest pair or wall overlap at the end (length)
+  double max_overlap = 0.0;           // EDM: largest overlap at the end; TDM: largest seen during the run
   double max_overlap_relative = 0.0;  // the same divided by the pair's contact distance
   std::vector<Vec<D>> x, v;           // final state
   std::vector<double> radius;

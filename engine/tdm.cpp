@@ -17,6 +17,8 @@ namespace {
 
 using Clock = std::chrono::steady_clock;
 
+constexpr std::size_t kMinPerThread = 2048;
+
 // Force on a particle owned by another thread's range, added after the parallel loop.
 template <int D>
 struct Spill {
@@ -118,6 +120,7 @@ class TdmEngine {
   std::vector<std::uint8_t> st_shift_;
   std::uint8_t centre_shift_ = 0;
   bool ambiguous_ = false;  // some periodic axis has fewer than three cells
+  bool initial_ = true;     // the force evaluation at t = 0 (contacts present then began before)
   std::vector<Vec<D>> scratch_vec_;
   std::vector<Spin<D>> scratch_spin_;
   std::vector<double> scratch_dbl_;
@@ -237,9 +240,10 @@ void TdmEngine<D>::setup() {
   }
   build_stencil();
 
-  // Threads: contiguous particle ranges, at least a few hundred particles each.
+  // Threads: contiguous particle ranges of at least kMinPerThread particles (below that, the
+  // fork-join of a parallel region each step costs more than it saves).
   int T = set_.threads > 0 ? set_.threads : omp_get_max_threads();
-  T = std::max(1, std::min<int>(T, static_cast<int>(N_ / 256) + 1));
+  T = std::max(1, std::min<int>(T, static_cast<int>(N_ / kMinPerThread)));
   T_ = T;
   lo_.resize(T_);
   hi_.resize(T_);
@@ -519,6 +523,28 @@ template <NormalLaw Law>
   return (c.clip && f < 0.0) ? 0.0 : f;
 }
 
+// First touch inside a step. A contact found overlapping by delta at t_{n+1}, approached at
+// speed u over the step, began tau = delta/u earlier (clamped to [0, h]); returns tau/h.
+inline double onset_fraction(double delta, double u, double h) {
+  return (u > 0.0 && delta < u * h) ? delta / (u * h) : 1.0;
+}
+
+// Correction of the first step of a contact (DERIVED). Velocity Verlet applies the force sampled
+// at t_{n+1} over the window [t_{n+1} - h/2, t_{n+1} + h/2] (its two half kicks). A linear
+// dashpot's force jumps from 0 to gamma u at first touch, so the sampled impulse gamma u h
+// misses the true gamma u (tau + h/2) (for tau < h/2 the window starts before the touch; for
+// tau > h/2 the previous sample, taken before the touch, missed gamma u (tau - h/2)): the first
+// sample's dashpots are weighted by tau/h + 1/2, which makes the dissipated impulse exact to
+// first order and the collision's outcome second order in h. Hertz and viscoelastic dashpots
+// vanish at delta = 0 and need no weight.
+template <NormalLaw Law>
+inline void at_onset(SoftContact& c, double onset) {
+  if constexpr (Law == NormalLaw::Linear) {
+    c.gn *= onset + 0.5;
+    c.gt *= onset + 0.5;
+  }
+}
+
 template <int D>
 template <bool Rot, bool Uniform, NormalLaw Law, bool Fuse>
 void TdmEngine<D>::pair_range(int t) {
@@ -556,15 +582,16 @@ void TdmEngine<D>::pair_range(int t) {
       const double r = std::sqrt(r2);
       const Vec<D> n = dx * (1.0 / r);
       const double delta = Rs - r;
+      double onset = -1.0;  // first step of this contact: the part of the step spent in contact
       if (!touch_[e]) {
         touch_[e] = 1;
         ++acc.new_pair;
+        if (!initial_) onset = onset_fraction(delta, -(vhi - v_[j]).dot(n), dt);
       }
-      if (delta > acc.max_rel * Rs) {
-        acc.max_rel = delta / Rs;
-        acc.max_abs = std::max(acc.max_abs, delta);
-      }
-      const SoftContact c = Uniform ? cpair_ : pair_coeffs(i, j);
+      if (delta > acc.max_rel * Rs) acc.max_rel = delta / Rs;
+      if (delta > acc.max_abs) acc.max_abs = delta;
+      SoftContact c = Uniform ? cpair_ : pair_coeffs(i, j);
+      if (onset >= 0.0) at_onset<Law>(c, onset);
       // Predicted velocities at the new time: v(t + h/2) + h/2 a(t).
       const Vec<D> vj = v_[j] + hdt * acc_[j];
       Vec<D> F;
@@ -578,6 +605,7 @@ void TdmEngine<D>::pair_range(int t) {
         k.n = n;
         k.v = contact_velocity<D>(vpi, wpi, li, vj, w_[j] + hdt * alpha_[j], lj, n);
         k.dxi = dt * contact_velocity<D>(vhi, whi, li, v_[j], w_[j], lj, n);
+        if (onset >= 0.0) k.dxi *= onset;  // the spring stretches only since first touch
         ContactHistory<D> h{xi_[e]};
         const ContactForce<D> cf = soft_contact_force_law<D, Law>(c, k, h);
         xi_[e] = h.xi;
@@ -622,15 +650,16 @@ inline void TdmEngine<D>::wall_contact_force(std::uint32_t e, Acc& acc) {
     }
     return;
   }
+  double onset = -1.0;
   if (!wl_touch_[e]) {
     wl_touch_[e] = 1;
     ++acc.new_wall;
+    if (!initial_) onset = onset_fraction(delta, -v_[i].dot(n), dt);
   }
-  if (delta > acc.max_rel * R_[i]) {
-    acc.max_rel = delta / R_[i];
-    acc.max_abs = std::max(acc.max_abs, delta);
-  }
-  const SoftContact c = Uniform ? cwall_[wl_w_[e]] : wall_coeffs(static_cast<int>(wl_w_[e]), i);
+  if (delta > acc.max_rel * R_[i]) acc.max_rel = delta / R_[i];
+  if (delta > acc.max_abs) acc.max_abs = delta;
+  SoftContact c = Uniform ? cwall_[wl_w_[e]] : wall_coeffs(static_cast<int>(wl_w_[e]), i);
+  if (onset >= 0.0) at_onset<Law>(c, onset);
   const Vec<D> vi = v_[i] + hdt * acc_[i];
   if constexpr (!Rot) {
     f_[i] += normal_force_of<Law>(c, delta, vi.dot(n)) * n;
@@ -641,6 +670,7 @@ inline void TdmEngine<D>::wall_contact_force(std::uint32_t e, Acc& acc) {
     k.n = n;
     k.v = vi - spin_cross<D>(li * Spin<D>(w_[i] + hdt * alpha_[i]), n);
     k.dxi = dt * (v_[i] - spin_cross<D>(li * w_[i], n));
+    if (onset >= 0.0) k.dxi *= onset;
     ContactHistory<D> h{wl_xi_[e]};
     const ContactForce<D> cf = soft_contact_force_law<D, Law>(c, k, h);
     wl_xi_[e] = h.xi;
@@ -852,8 +882,9 @@ RunResult<D> TdmEngine<D>::run() {
   auto check_stable = [&] {
     if (!(max_rel_ <= set_.unstable_overlap)) {
       status_ = "unstable";
-      message_ = fmt::format("an overlap reached {:.3g} of the contact distance at t = {}: the time step {} is too "
-                             "long for the contact stiffness (stability limit {:.6g}; default step {:.6g})",
+      message_ = fmt::format("an overlap reached {:.3g} of the contact distance at t = {}: either the time step {} "
+                             "is too long for the contact stiffness (stability limit {:.6g}; default step {:.6g}) "
+                             "or the contacts are too soft for the impacts (raise stiffness or young)",
                              max_rel_, steps_ * dt_, dt_, plan_.max_stable_dt, plan_.default_dt);
     }
   };
@@ -869,7 +900,12 @@ RunResult<D> TdmEngine<D>::run() {
   if (N_ > 0) {
     rebuild();
     if (status_ == "ok") {
+      // Forces at t = 0 give a(0) only: contacts that exist at t = 0 keep their springs unstretched.
+      const std::vector<Vec<D>> xi0 = xi_, wxi0 = wl_xi_;
       forces(false);
+      initial_ = false;
+      xi_ = xi0;
+      wl_xi_ = wxi0;
       check_stable();
       // v holds v(t - h/2) between steps.
       for (std::size_t i = 0; i < N_; ++i) v_[i] -= hdt_ * (f_[i] * minv_[i] + g_);

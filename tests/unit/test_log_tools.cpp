@@ -401,7 +401,7 @@ TEST(LogVerify, PassesOnTheLogOfEveryShippedCase) {
     const std::string name = scene.stem().string();
     // The event log records instantaneous collisions: soft-sphere (tdm) cases have none and
     // refuse output.events (tested in test_tdm_input.cpp).
-    if (load_scene(scene.string()).method == "tdm") continue;
+    if (matep::load_scene(scene.string()).method == "tdm") continue;
     // Short runs; the bouncing ball runs to its collapse (exit 3), which still writes the log.
     const bool collapse = name == "bouncing_ball";
     const std::string sets = std::string(collapse ? "" : " --set run.end_time=0.3") + " --set output.events=true";

@@ -27,4 +27,14 @@ inline double smooth_wall_collision(V& v, double m, const V& n, double e) {
   return J;
 }
 
+// Smooth collision with an infinitely heavy plane of unit normal n moving at velocity u: the
+// normal relative velocity is reversed, (v' - u).n = -e (v - u).n; the tangential velocity is kept.
+template <class V>
+inline double smooth_moving_wall_collision(V& v, double m, const V& n, const V& u, double e) {
+  const double un = (v - u).dot(n);
+  const double J = -(1.0 + e) * m * un;
+  v += (J / m) * n;
+  return J;
+}
+
 }  // namespace matep

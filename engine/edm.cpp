@@ -74,6 +74,7 @@ class EdmEngine {
     queue_.emplace(static_cast<std::size_t>(N_) + 3);  // particles + sampler, end, snapshots
     all_elastic_ = true;
     for (const auto& mat : sys.materials) all_elastic_ = all_elastic_ && mat.restitution.is_elastic();
+    for (const auto& wall : sys.walls) moving_walls_ = moving_walls_ || wall.oscillating();
     build_cells(2.0 * rmax);
   }
 
@@ -412,6 +413,7 @@ class EdmEngine {
     int partner = -1;
     for (std::size_t w = 0; w < sys_.walls.size(); ++w) {
       const auto& wall = sys_.walls[w];
+      if (moving_walls_ && wall.oscillating()) continue;  // after the pairs (below)
       const double dt = wall_collision_time(h.x, h.v, g_, h.R, wall.point, wall.normal);
       if (dt < best) {
         best = dt;
@@ -420,6 +422,21 @@ class EdmEngine {
       }
     }
     test_pairs(i, now, best, type, partner);
+    // Oscillating walls: bracketed root search, stopped at the earliest event found so far. A wall
+    // impact cut off this way lies beyond an event whose handling re-predicts i (a collision of i,
+    // or a stale pair event), so it is never lost.
+    if (moving_walls_)
+      for (std::size_t w = 0; w < sys_.walls.size(); ++w) {
+        const auto& wall = sys_.walls[w];
+        if (!wall.oscillating()) continue;
+        const double dt = moving_wall_collision_time(h.x, h.v, g_, h.R, wall.point, wall.normal, wall.amplitude,
+                                                     wall.angular_frequency(), now, best);
+        if (dt < best) {
+          best = dt;
+          type = kWall;
+          partner = static_cast<int>(w);
+        }
+      }
     cold_[i].ev_t = now + best;
     cold_[i].type = type;
     cold_[i].partner = partner;
@@ -570,6 +587,10 @@ class EdmEngine {
   }
 
   void collide_wall(int i, int w) {
+    if (moving_walls_ && sys_.walls[w].oscillating()) {
+      collide_moving_wall(i, w);
+      return;
+    }
     Hot<D>& a = hot_[i];
     const auto& wall = sys_.walls[w];
     const double u = a.v.dot(wall.normal);
@@ -598,6 +619,47 @@ class EdmEngine {
       rec.e = e;
       rec.normal = wall.normal;
       rec.vi_after = a.v;
+      fill_spins(rec, i, -1);
+      for (auto* o : collision_observers_) o->on_collision(rec);
+    }
+  }
+
+  // Collision with an oscillating wall (infinitely heavy, moving at u(t)): the normal relative
+  // velocity (v - u).n is reversed with the restitution at the relative normal speed. The record
+  // carries the wall's velocity as vj (before = after).
+  void collide_moving_wall(int i, int w) {
+    Hot<D>& a = hot_[i];
+    const auto& wall = sys_.walls[w];
+    const Vec<D> u = wall.velocity(now_);
+    // A prediction that stopped short of the wall (the step cap of oscillating_gap_closing_time)
+    // leaves the gap open: a checkpoint, re-predicted by the caller, not a collision.
+    const double gap = (a.x - wall.position(now_)).dot(wall.normal) - a.R;
+    if (gap > 1e-9 * (a.R + std::abs(wall.amplitude.dot(wall.normal)))) return;
+    const double un = (a.v - u).dot(wall.normal);
+    if (!(un < 0.0)) {
+      note_collision(i);  // touching without approach: as for a static wall
+      return;
+    }
+    double e = restitution(cold_[i].mat, wall.material, -un);
+    if (set_.tc > 0.0 && now_ - cold_[i].last < set_.tc) e = 1.0;
+    CollisionRecord<D> rec;
+    const bool log = !collision_observers_.empty();
+    if (log) rec.vi_before = a.v;
+    smooth_moving_wall_collision(a.v, mass(i), wall.normal, u, e);
+    ++cold_[i].counter;
+    ++counts_.wall;
+    note_collision(i);
+    if (log) {
+      rec.time = now_;
+      rec.kind = EventKind::WallCollision;
+      rec.i = static_cast<std::uint32_t>(i);
+      rec.j = static_cast<std::uint32_t>(w);
+      rec.mi = mass(i);
+      rec.e = e;
+      rec.normal = wall.normal;
+      rec.vi_after = a.v;
+      rec.vj_before = u;
+      rec.vj_after = u;
       fill_spins(rec, i, -1);
       for (auto* o : collision_observers_) o->on_collision(rec);
     }
@@ -667,6 +729,8 @@ class EdmEngine {
 
   void measure_overlaps(RunResult<D>& res) {
     double worst = 0.0, worst_rel = 0.0;
+    std::vector<Vec<D>> wall_at;  // wall points at the final time (oscillating walls move)
+    for (const auto& wall : sys_.walls) wall_at.push_back(wall.position(res.time));
     for (int i = 0; i < N_; ++i) {
       const Hot<D>& a = hot_[i];
       for_neighbours(i, [&](int j, const Vec<D>& shift) {
@@ -676,8 +740,9 @@ class EdmEngine {
         if (ov > worst) worst = ov;
         if (ov / sigma > worst_rel) worst_rel = ov / sigma;
       });
-      for (const auto& wall : sys_.walls) {
-        const double ov = a.R - (a.x - wall.point).dot(wall.normal);
+      for (std::size_t w = 0; w < sys_.walls.size(); ++w) {
+        const auto& wall = sys_.walls[w];
+        const double ov = a.R - (a.x - wall_at[w]).dot(wall.normal);
         if (ov > worst) worst = ov;
         if (ov / a.R > worst_rel) worst_rel = ov / a.R;
       }
@@ -693,6 +758,7 @@ class EdmEngine {
   std::vector<Observer<D>*> observers_, collision_observers_, snapshot_observers_;
   Vec<D> g_, lo_, hi_, L_;
   bool gravity_ = false, all_elastic_ = false;
+  bool moving_walls_ = false;  // some wall oscillates
   double window_ = 0.0;
   double now_ = 0.0;
 

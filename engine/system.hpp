@@ -3,8 +3,10 @@
 #pragma once
 
 #include <array>
+#include <cmath>
 #include <cstdint>
 #include <limits>
+#include <numbers>
 #include <optional>
 #include <string>
 #include <vector>
@@ -34,6 +36,23 @@ struct Wall {
   Vec<D> point = Vec<D>::Zero();
   Vec<D> normal = Vec<D>::Zero();  // unit; particles live on the side the normal points to
   int material = 0;
+  // Sinusoidal oscillation of the plane (the normal stays fixed): its point moves as
+  // p(t) = point + amplitude sin(2 pi frequency t). A zero amplitude is a static wall.
+  Vec<D> amplitude = Vec<D>::Zero();
+  double frequency = 0.0;
+
+  bool oscillating() const { return frequency > 0.0 && (amplitude.array() != 0.0).any(); }
+  double angular_frequency() const { return 2.0 * std::numbers::pi * frequency; }
+  // p(t) and its velocity u(t) = 2 pi f amplitude cos(2 pi f t).
+  Vec<D> position(double t) const {
+    if (!oscillating()) return point;
+    return point + std::sin(angular_frequency() * t) * amplitude;
+  }
+  Vec<D> velocity(double t) const {
+    if (!oscillating()) return Vec<D>::Zero();
+    const double w = angular_frequency();
+    return (w * std::cos(w * t)) * amplitude;
+  }
 };
 
 template <int D>

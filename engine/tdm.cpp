@@ -434,7 +434,7 @@ void TdmEngine<D>::rebuild() {
       for (std::uint32_t k = st_off_[c]; k < st_off_[c + 1]; ++k) {
         const std::uint32_t c2 = st_cell_[k];
         const std::uint8_t s = st_shift_[k];
-        const Vec<D> xs = xi + shifts_[s];
+        const Vec<D> xs = s != kMinImage ? Vec<D>(xi + shifts_[s]) : xi;
         for (std::uint32_t j = cell_start_[c2]; j < cell_start_[c2 + 1]; ++j) {
           const double cut = Ri + R_[j];
           if (s != kMinImage) {
@@ -475,7 +475,9 @@ void TdmEngine<D>::rebuild() {
   for (std::size_t i = 0; i < N_; ++i)
     for (std::size_t w = 0; w < sys_.walls.size(); ++w) {
       const auto& W = sys_.walls[w];
-      if ((x_[i] - W.point).dot(W.normal) < R_[i] + skin_) {
+      // An oscillating wall reaches |amplitude.n| beyond its mean plane.
+      const double reach = W.oscillating() ? std::abs(W.amplitude.dot(W.normal)) : 0.0;
+      if ((x_[i] - W.point).dot(W.normal) < R_[i] + skin_ + reach) {
         wl_i_.push_back(static_cast<std::uint32_t>(i));
         wl_w_.push_back(static_cast<std::uint32_t>(w));
       }
@@ -646,7 +648,19 @@ inline void TdmEngine<D>::wall_contact_force(std::uint32_t e, Acc& acc) {
   const std::uint32_t i = wl_i_[e];
   const auto& W = sys_.walls[wl_w_[e]];
   const Vec<D>& n = W.normal;
-  const double delta = R_[i] - (x_[i] - W.point).dot(n);
+  // An oscillating wall is at p(t_n), t_n = steps_ dt (the forces of step n are evaluated at t_n),
+  // and moves at u(t_n) (with the predicted velocities) and u(t_n - h/2) (with the half-step
+  // ones); a static wall keeps u = uh = 0.
+  double delta;
+  Vec<D> u = Vec<D>::Zero(), uh = Vec<D>::Zero();
+  if (!W.oscillating()) {
+    delta = R_[i] - (x_[i] - W.point).dot(n);
+  } else {
+    const double tn = static_cast<double>(steps_) * dt;
+    delta = R_[i] - (x_[i] - W.position(tn)).dot(n);
+    u = W.velocity(tn);
+    uh = W.velocity(tn - hdt);
+  }
   if (delta <= 0.0) {
     if (wl_touch_[e]) {
       wl_touch_[e] = 0;
@@ -658,13 +672,13 @@ inline void TdmEngine<D>::wall_contact_force(std::uint32_t e, Acc& acc) {
   if (!wl_touch_[e]) {
     wl_touch_[e] = 1;
     ++acc.new_wall;
-    if (!initial_) onset = onset_fraction(delta, -v_[i].dot(n), dt);
+    if (!initial_) onset = onset_fraction(delta, -(v_[i] - uh).dot(n), dt);
   }
   if (delta > acc.max_rel * R_[i]) acc.max_rel = delta / R_[i];
   if (delta > acc.max_abs) acc.max_abs = delta;
   SoftContact c = Uniform ? cwall_[wl_w_[e]] : wall_coeffs(static_cast<int>(wl_w_[e]), i);
   if (onset >= 0.0) at_onset<Law>(c, onset);
-  const Vec<D> vi = v_[i] + hdt * acc_[i];
+  const Vec<D> vi = v_[i] + hdt * acc_[i] - u;  // relative to the wall
   if constexpr (!Rot) {
     f_[i] += normal_force_of<Law>(c, delta, vi.dot(n)) * n;
   } else {
@@ -673,7 +687,7 @@ inline void TdmEngine<D>::wall_contact_force(std::uint32_t e, Acc& acc) {
     k.delta = delta;
     k.n = n;
     k.v = vi - spin_cross<D>(li * Spin<D>(w_[i] + hdt * alpha_[i]), n);
-    k.dxi = dt * (v_[i] - spin_cross<D>(li * w_[i], n));
+    k.dxi = dt * (v_[i] - uh - spin_cross<D>(li * w_[i], n));
     if (onset >= 0.0) k.dxi *= onset;
     ContactHistory<D> h{wl_xi_[e]};
     const ContactForce<D> cf = soft_contact_force_law<D, Law>(c, k, h);
@@ -743,7 +757,7 @@ void TdmEngine<D>::forces(bool fuse) {
 // v(t + h/2) = v(t - h/2) + h a(t), x += h v(t + h/2). Returns whether it has moved more than half
 // the skin since the last rebuild (a non-finite position counts as moved).
 template <int D>
-inline bool TdmEngine<D>::integrate_one(std::uint32_t i) {
+[[gnu::always_inline]] inline bool TdmEngine<D>::integrate_one(std::uint32_t i) {
   const double dt = dt_;
   const Vec<D> a = f_[i] * minv_[i] + g_;
   f_[i].setZero();
@@ -806,7 +820,7 @@ ThermoSample TdmEngine<D>::sample(double time) {
   for (std::size_t e = 0; e < wl_i_.size(); ++e) {
     const std::uint32_t i = wl_i_[e];
     const auto& W = sys_.walls[wl_w_[e]];
-    const double delta = R_[i] - (x_[i] - W.point).dot(W.normal);
+    const double delta = R_[i] - (x_[i] - W.position(time)).dot(W.normal);
     if (delta <= 0.0) continue;
     el += stored(wall_coeffs(static_cast<int>(wl_w_[e]), i), delta, rot_ ? wl_xi_[e] : Vec<D>::Zero());
   }

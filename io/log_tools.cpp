@@ -539,16 +539,17 @@ std::optional<Violation> check_record(const EventRecord& r, const EventLogHeader
   }
   if (!(r.e >= 0.0 && r.e <= 1.0)) return fail("restitution", fmt::format("e = {:.17g} outside [0, 1]", r.e));
 
-  // Relative velocity (a wall is at rest: vj = 0 and mj is not used).
+  // Relative velocity (a wall's vj is its own velocity: zero for a static wall, u(t) for an
+  // oscillating one; mj is not used).
   double gb[3], ga[3], dvi[3], dvj[3];
   for (int c = 0; c < 3; ++c) {
-    const double vjb = pair ? r.vj_before[c] : 0.0, vja = pair ? r.vj_after[c] : 0.0;
+    const double vjb = r.vj_before[c], vja = r.vj_after[c];
     gb[c] = r.vi_before[c] - vjb;
     ga[c] = r.vi_after[c] - vja;
     dvi[c] = r.vi_after[c] - r.vi_before[c];
     dvj[c] = vja - vjb;
   }
-  const double vib = norm3(r.vi_before), vjb = pair ? norm3(r.vj_before) : 0.0;
+  const double vib = norm3(r.vi_before), vjb = norm3(r.vj_before);
   const double V = vib + vjb;  // velocity scale
   const double ub = dot3(gb, r.normal), ua = dot3(ga, r.normal);
   if (ub > tol * V)
@@ -607,12 +608,14 @@ std::optional<Violation> check_record(const EventRecord& r, const EventLogHeader
                                       sres, W));
   }
 
-  // Energy: KE lost = (1 - e^2) m* u_n^2 / 2.
+  // Energy: KE lost = (1 - e^2) m* u_n^2 / 2 (a wall collision: in the wall's frame).
   {
-    const double ke_b = 0.5 * r.mi * dot3(r.vi_before, r.vi_before) +
-                        (pair ? 0.5 * r.mj * dot3(r.vj_before, r.vj_before) : 0.0);
-    const double ke_a = 0.5 * r.mi * dot3(r.vi_after, r.vi_after) +
-                        (pair ? 0.5 * r.mj * dot3(r.vj_after, r.vj_after) : 0.0);
+    const double ke_b = pair ? 0.5 * r.mi * dot3(r.vi_before, r.vi_before) +
+                                   0.5 * r.mj * dot3(r.vj_before, r.vj_before)
+                             : 0.5 * r.mi * dot3(gb, gb);
+    const double ke_a = pair ? 0.5 * r.mi * dot3(r.vi_after, r.vi_after) +
+                                   0.5 * r.mj * dot3(r.vj_after, r.vj_after)
+                             : 0.5 * r.mi * dot3(ga, ga);
     const double mstar = pair ? r.mi * r.mj / (r.mi + r.mj) : r.mi;
     const double expected = 0.5 * (1.0 - r.e * r.e) * mstar * ub * ub;
     const double lost = ke_b - ke_a;

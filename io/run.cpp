@@ -203,9 +203,14 @@ std::string describe(const Scene& scene, const System<D>& sys) {
   for (int k = 0; k < D; ++k) per += sys.periodic[k] ? "yes " : "no ";
   s += fmt::format("domain       lower {}  upper {}  periodic {}\n", fmt::join(sys.lower, ", "),
                    fmt::join(sys.upper, ", "), per);
-  for (const auto& w : sys.walls)
-    s += fmt::format("  [wall.{}] plane through ({}) normal ({})\n", w.name, fmt::join(w.point, ", "),
+  for (const auto& w : sys.walls) {
+    s += fmt::format("  [wall.{}] plane through ({}) normal ({})", w.name, fmt::join(w.point, ", "),
                      fmt::join(w.normal, ", "));
+    if (w.oscillating())
+      s += fmt::format(", oscillating: amplitude ({}) at frequency {} (peak speed {:.4g})", fmt::join(w.amplitude, ", "),
+                       w.frequency, w.angular_frequency() * w.amplitude.norm());
+    s += "\n";
+  }
   if (sys.gravity.squaredNorm() > 0.0)
     s += fmt::format("gravity      ({})\n", fmt::join(sys.gravity, ", "));
   if (scene.tc > 0.0) s += fmt::format("TC model     collisions within {} of a previous one are elastic\n", scene.tc);

@@ -469,7 +469,7 @@ void build_system(const TableReader& top, const TableReader& run, const fs::path
 
   // [wall.NAME]
   for (const auto& [name, t] : named_tables(top, "wall")) {
-    t.allow({"type", "point", "normal", "material"});
+    t.allow({"type", "point", "normal", "material", "oscillation"});
     Wall<D> w;
     w.name = name;
     t.string("type", {"plane"});
@@ -478,6 +478,12 @@ void build_system(const TableReader& top, const TableReader& run, const fs::path
     if (!(n.norm() > 0.0)) t.fail("normal", "must be a nonzero vector", t.need("normal"));
     w.normal = n / n.norm();
     w.material = material_index(t, sys.materials);
+    if (t.has("oscillation")) {  // p(t) = point + amplitude sin(2 pi frequency t)
+      const TableReader o = t.sub("oscillation");
+      o.allow({"amplitude", "frequency"});
+      w.amplitude = to_vec<D>(o.numbers("amplitude", D));
+      w.frequency = o.number("frequency", kPositive);
+    }
     sys.walls.push_back(std::move(w));
   }
 

@@ -560,27 +560,35 @@ void TdmEngine<D>::pair_range(int t) {
   const double dt = dt_, hdt = hdt_;
   std::uint32_t ew = wlo_[t];  // wall entries are sorted by particle
   bool moved = false;
+  // Raw pointers: the force writes below would otherwise make the compiler reload every vector's
+  // data pointer at every use.
+  Vec<D>* const X = x_.data();
+  const Vec<D>* const V = v_.data();
+  const Vec<D>* const AC = acc_.data();
+  Vec<D>* const FF = f_.data();
+  const double* const RR = R_.data();
+  const std::uint32_t* const NB = nb_.data();
+  const std::uint32_t* const OFF = off_.data();
+  const std::uint8_t* const SH = sh_.data();
+  std::uint8_t* const TOUCH = touch_.data();
+  const std::uint8_t* const BND = boundary_.data();
+  const Vec<D>* const SHIFT = shifts_.data();
   for (std::uint32_t i = lo; i < hi; ++i) {
-    const Vec<D> xi = x_[i];
-    const double Ri = R_[i];
-    // i's half-step and predicted velocities, loaded once (the partner loop writes forces).
-    const Vec<D> vhi = v_[i], vpi = v_[i] + hdt * acc_[i];
-    Spin<D> whi = Spin<D>::Zero(), wpi = Spin<D>::Zero();
-    if constexpr (Rot) {
-      whi = w_[i];
-      wpi = w_[i] + hdt * alpha_[i];
-    }
+    const Vec<D> xi = X[i];
+    const double Ri = RR[i];
+    // i's half-step and predicted velocities are read where a contact needs them (most entries
+    // of a dilute gas are not in contact).
     Vec<D> fi = Vec<D>::Zero();
     Spin<D> ti = Spin<D>::Zero();
-    const std::uint32_t end = off_[i + 1];
-    for (std::uint32_t e = off_[i]; e < end; ++e) {
-      const std::uint32_t j = nb_[e];
-      const Vec<D> dx = xi - x_[j] + shifts_[sh_[e]];
-      const double Rs = Ri + R_[j];
+    const std::uint32_t end = OFF[i + 1];
+    for (std::uint32_t e = OFF[i]; e < end; ++e) {
+      const std::uint32_t j = NB[e];
+      const Vec<D> dx = xi - X[j] + SHIFT[SH[e]];
+      const double Rs = Ri + RR[j];
       const double r2 = dx.squaredNorm();
       if (r2 >= Rs * Rs) {
-        if (touch_[e]) {
-          touch_[e] = 0;
+        if (TOUCH[e]) {
+          TOUCH[e] = 0;
           if constexpr (Rot) xi_[e].setZero();
         }
         continue;
@@ -588,29 +596,31 @@ void TdmEngine<D>::pair_range(int t) {
       const double r = std::sqrt(r2);
       const Vec<D> n = dx * (1.0 / r);
       const double delta = Rs - r;
+      const Vec<D> vhi = V[i], vpi = V[i] + hdt * AC[i];
       double onset = -1.0;  // first step of this contact: the part of the step spent in contact
-      if (!touch_[e]) {
-        touch_[e] = 1;
+      if (!TOUCH[e]) {
+        TOUCH[e] = 1;
         ++acc.new_pair;
-        if (!initial_) onset = onset_fraction(delta, -(vhi - v_[j]).dot(n), dt);
+        if (!initial_) onset = onset_fraction(delta, -(vhi - V[j]).dot(n), dt);
       }
       if (delta > acc.max_rel * Rs) acc.max_rel = delta / Rs;
       if (delta > acc.max_abs) acc.max_abs = delta;
       SoftContact c = Uniform ? cpair_ : pair_coeffs(i, j);
       if (onset >= 0.0) at_onset<Law>(c, onset);
       // Predicted velocities at the new time: v(t + h/2) + h/2 a(t).
-      const Vec<D> vj = v_[j] + hdt * acc_[j];
+      const Vec<D> vj = V[j] + hdt * AC[j];
       Vec<D> F;
       Spin<D> tj = Spin<D>::Zero();
       if constexpr (!Rot) {
         F = normal_force_of<Law>(c, delta, (vpi - vj).dot(n)) * n;
       } else {
-        const double li = pair_lever_arm(Ri, delta), lj = pair_lever_arm(R_[j], delta);
+        const double li = pair_lever_arm(Ri, delta), lj = pair_lever_arm(RR[j], delta);
         ContactKinematics<D> k;
         k.delta = delta;
         k.n = n;
+        const Spin<D> whi = w_[i], wpi = w_[i] + hdt * alpha_[i];
         k.v = contact_velocity<D>(vpi, wpi, li, vj, w_[j] + hdt * alpha_[j], lj, n);
-        k.dxi = dt * contact_velocity<D>(vhi, whi, li, v_[j], w_[j], lj, n);
+        k.dxi = dt * contact_velocity<D>(vhi, whi, li, V[j], w_[j], lj, n);
         if (onset >= 0.0) k.dxi *= onset;  // the spring stretches only since first touch
         ContactHistory<D> h{xi_[e]};
         const ContactForce<D> cf = soft_contact_force_law<D, Law>(c, k, h);
@@ -623,19 +633,19 @@ void TdmEngine<D>::pair_range(int t) {
       }
       fi += F;
       if (j >= lo && j < hi) {
-        f_[j] -= F;
+        FF[j] -= F;
         if constexpr (Rot) tq_[j] += tj;
       } else {
         spill.push_back({j, -F, tj});
       }
     }
-    f_[i] += fi;
+    FF[i] += fi;
     if constexpr (Rot) tq_[i] += ti;
     for (; ew < whi_[t] && wl_i_[ew] == i; ++ew) wall_contact_force<Rot, Uniform, Law>(ew, acc);
     // Every pair entry has j > i (storage is sorted by cell), so i's force is complete here unless
     // a lower thread range still adds to it: integrate it now and never read it again this step.
     if constexpr (Fuse) {
-      if (!boundary_[i]) moved |= integrate_one(i);
+      if (!BND[i]) moved |= integrate_one(i);
     }
   }
   acc.moved = moved;
@@ -758,19 +768,34 @@ void TdmEngine<D>::forces(bool fuse) {
 // the skin since the last rebuild (a non-finite position counts as moved).
 template <int D>
 [[gnu::always_inline]] inline bool TdmEngine<D>::integrate_one(std::uint32_t i) {
-  const double dt = dt_;
-  const Vec<D> a = f_[i] * minv_[i] + g_;
-  f_[i].setZero();
-  acc_[i] = a;
-  v_[i] += dt * a;
-  x_[i] += dt * v_[i];
+  // Written out by component: this runs once per particle and step, and its memory traffic is
+  // most of a dilute gas's cost (a force that is already zero is not written again).
+  const double dt = dt_, mi = minv_[i];
+  double* f = f_[i].data();
+  double* a = acc_[i].data();
+  double* v = v_[i].data();
+  double* x = x_[i].data();
+  const double* x0 = x0_[i].data();
+  bool nonzero = false;
+  double d2 = 0.0;
+  for (int k = 0; k < D; ++k) {
+    nonzero |= f[k] != 0.0;
+    const double ak = f[k] * mi + g_[k];
+    a[k] = ak;
+    v[k] += dt * ak;
+    x[k] += dt * v[k];
+    const double dk = x[k] - x0[k];
+    d2 += dk * dk;
+  }
+  if (nonzero)
+    for (int k = 0; k < D; ++k) f[k] = 0.0;
   if (rot_) {
     const Spin<D> al = tq_[i] * iinv_[i];
     tq_[i].setZero();
     alpha_[i] = al;
     w_[i] += dt * al;
   }
-  return !((x_[i] - x0_[i]).squaredNorm() <= half_skin2_);
+  return !(d2 <= half_skin2_);
 }
 
 template <int D>

@@ -159,6 +159,9 @@ struct Builder {
   System<D>& sys;
   std::vector<Group<D>> groups;
   std::vector<std::pair<std::size_t, std::size_t>> owner;  // grid tag -> (group, index)
+  // Overlap allowed between particles read from files, as a fraction of the contact distance:
+  // round-off for hard spheres; kSoftFileOverlap for soft spheres (a settled TDM state).
+  double file_overlap = 1e-12;
 
   std::string who(std::size_t g, std::size_t i) const {
     std::string s = fmt::format("particles.{}[{}]", groups[g].name, i);
@@ -211,12 +214,14 @@ struct Builder {
     std::map<std::string, std::size_t> col;
     for (std::size_t c = 0; c < csv.columns.size(); ++c) {
       const std::string& name = csv.columns[c];
+      // "id" (as written in final_state.csv) is accepted and ignored: ids follow the file order.
       const bool known = std::find(required.begin(), required.end(), name) != required.end() ||
-                         std::find(optional.begin(), optional.end(), name) != optional.end();
+                         std::find(optional.begin(), optional.end(), name) != optional.end() || name == "id";
       if (!known) {
         std::string allowed;
         for (const auto& a : required) allowed += (allowed.empty() ? "" : ",") + a;
         for (const auto& a : optional) allowed += "," + a;
+        allowed += ",id";
         bad(fmt::format("unknown column '{}' (columns of a {}D particle file: {})", name, D, allowed));
       }
       col[name] = c;
@@ -250,7 +255,7 @@ struct Builder {
       }
       for (int k = 0; k < D; ++k) {
         const double lo = sys.lower[k], hi = sys.upper[k], xk = g.x[i][k];
-        const double slack = 1e-12 * g.r[i];
+        const double slack = file_overlap * g.r[i];  // a soft particle may press into a wall at the edge
         const bool inside = sys.periodic[k] ? (xk >= lo && xk <= hi)
                                             : (xk - g.r[i] >= lo - slack && xk + g.r[i] <= hi + slack);
         if (!inside) {
@@ -330,13 +335,14 @@ struct Builder {
     const double r = g.r[i];
     const std::string key = t.key(g.from_file ? "file" : "arrangement");
     const std::string got = g.from_file ? quote(g.file_value) : quote(g.lattice ? "lattice" : "random");
-    if (const auto w = placement::wall_overlap<D>(sys.walls, x, r, 1e-12)) {
+    const double tol = g.from_file ? file_overlap : 1e-12;
+    if (const auto w = placement::wall_overlap<D>(sys.walls, x, r, tol)) {
       fail_got(file, key,
                fmt::format("{} at {} with radius {} overlaps wall.{} by {:.6g} (signed distance {:.6g} < radius)",
                            who(gi, i), vec_str<D>(x), r, sys.walls[w->first].name, r - w->second, w->second),
                got);
     }
-    if (const auto hit = grid.first_overlap(x, r, 1e-12)) {
+    if (const auto hit = grid.first_overlap(x, r, tol)) {
       const auto [og, oi] = owner[hit->tag];
       fail_got(file, key,
                fmt::format("{} at {} with radius {} overlaps {} at {} with radius {} by {:.6g}", who(gi, i),
@@ -494,6 +500,7 @@ void build_system(const TableReader& top, const TableReader& run, const fs::path
   const auto group_tables = named_tables(top, "particles");
   if (group_tables.empty()) fail(file, "particles", "missing (a scene needs at least one [particles.NAME] table)");
   Builder<D> b{file, base_dir, sys, {}, {}};
+  if (scene.method == "tdm") b.file_overlap = kSoftFileOverlap;
   for (std::size_t gi = 0; gi < group_tables.size(); ++gi) {
     b.read_group(group_tables[gi].first, group_tables[gi].second);
   }

@@ -14,6 +14,11 @@
 
 namespace matep {
 
+// Particles read from a file may overlap by up to this fraction of their contact distance when
+// run.method = "tdm" (a soft-sphere state, e.g. a settled bed written by an earlier run); any
+// overlap beyond round-off is an error for hard spheres.
+inline constexpr double kSoftFileOverlap = 0.05;
+
 class SceneError : public std::runtime_error {
  public:
   using std::runtime_error::runtime_error;

@@ -154,3 +154,54 @@ TEST(TdmInput, BlowUpStopsWithStatusUnstable) {
   EXPECT_TRUE(fs::exists(d / "o" / "thermo.csv"));
   fs::remove_all(d);
 }
+
+// A soft-sphere state (e.g. a settled bed written by an earlier run) overlaps: particle files may
+// overlap by up to kSoftFileOverlap of the contact distance with run.method = "tdm", not beyond,
+// and not at all (beyond round-off) for hard spheres. Two touching unit spheres overlapping by
+// delta repel: at rest and without damping, they separate with equal and opposite velocities.
+TEST(TdmInput, ParticleFilesMayOverlapSlightlyForSoftSpheres) {
+  const fs::path dir = fs::temp_directory_path() / "matep_tdm_file_overlap";
+  fs::create_directories(dir);
+  auto scene = [&](const std::string& method, double overlap) {
+    // The layout of final_state.csv (its id column is accepted and ignored), so a run restarts
+    // from an earlier run's output.
+    std::ofstream(dir / "pair.csv") << "id,x,y,z,vx,vy,vz,wx,wy,wz,radius\n"
+                                    << "0," << -0.5 + 0.5 * overlap << ",0,0,0,0,0,0,0,0,0.5\n"
+                                    << "1," << 0.5 - 0.5 * overlap << ",0,0,0,0,0,0,0,0,0.5\n";
+    return "[run]\ndimension = 3\nmethod = \"" + method +
+           "\"\nend_time = 0.05\n[domain]\nlower = [-5.0, -5.0, -5.0]\nupper = [5.0, 5.0, 5.0]\n"
+           "[material.glass]\ndensity = 1.909859317102744\n" +
+           kLinear + "[particles.p]\nmaterial = \"glass\"\nfile = \"pair.csv\"\n";
+  };
+  // 2 % of the contact distance: accepted by tdm, refused by edm.
+  const Scene soft = load_scene_string(scene("tdm", 0.02), "soft.toml", dir.string());
+  EXPECT_EQ(std::get<System<3>>(soft.system).size(), 2u);
+  EXPECT_THROW(load_scene_string(scene("edm", 0.02), "hard.toml", dir.string()), SceneError);
+  // 8 % is beyond what a soft state may hold.
+  try {
+    load_scene_string(scene("tdm", 0.08), "deep.toml", dir.string());
+    ADD_FAILURE() << "an 8 % overlap was accepted";
+  } catch (const SceneError& e) {
+    EXPECT_NE(std::string(e.what()).find("overlaps"), std::string::npos) << e.what();
+    EXPECT_NE(std::string(e.what()).find("particles.p"), std::string::npos) << e.what();
+  }
+  // The accepted state runs: the spring (k = 1e4, delta = 0.02) pushes the pair apart; elastic,
+  // so the stored energy k delta^2/2 = 2 becomes kinetic: 2 (m v^2/2) = 2 with m = 1, v = sqrt 2.
+  const fs::path out = dir / "out";
+  fs::remove_all(out);
+  const RunOutcome r = run_scene(soft, out.string());
+  ASSERT_EQ(r.status, "ok") << r.message;
+  std::ifstream f(out / "final_state.csv");
+  std::string header, a, b;
+  std::getline(f, header);
+  std::getline(f, a);
+  std::getline(f, b);
+  auto vx = [](const std::string& line) {
+    std::size_t p = 0;
+    for (int k = 0; k < 4; ++k) p = line.find(',', p) + 1;  // id,x,y,z, -> vx
+    return std::stod(line.substr(p));
+  };
+  EXPECT_NEAR(vx(a), -std::sqrt(2.0), 0.01);
+  EXPECT_NEAR(vx(b), std::sqrt(2.0), 0.01);
+  fs::remove_all(dir);
+}

@@ -605,8 +605,15 @@ void TdmEngine<D>::pair_range(int t) {
       }
       if (delta > acc.max_rel * Rs) acc.max_rel = delta / Rs;
       if (delta > acc.max_abs) acc.max_abs = delta;
-      SoftContact c = Uniform ? cpair_ : pair_coeffs(i, j);
-      if (onset >= 0.0) at_onset<Law>(c, onset);
+      // The pair's constants: the shared ones unless the particles differ or the contact starts.
+      SoftContact local;
+      const SoftContact* cp = &cpair_;
+      if (!Uniform || onset >= 0.0) {
+        local = Uniform ? cpair_ : pair_coeffs(i, j);
+        if (onset >= 0.0) at_onset<Law>(local, onset);
+        cp = &local;
+      }
+      const SoftContact& c = *cp;
       // Predicted velocities at the new time: v(t + h/2) + h/2 a(t).
       const Vec<D> vj = V[j] + hdt * AC[j];
       Vec<D> F;

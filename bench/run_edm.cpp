@@ -21,26 +21,15 @@
 #include <string>
 #include <vector>
 
+#include "bench/common.hpp"
 #include "engine/edm.hpp"
 
 using namespace matep;
 
 namespace {
 
-long peak_rss_kb() {
-  rusage u{};
-  getrusage(RUSAGE_SELF, &u);
-  return u.ru_maxrss;
-}
-
-long current_rss_kb() {
-  long pages = 0, resident = 0;
-  if (std::FILE* f = std::fopen("/proc/self/statm", "r")) {
-    if (std::fscanf(f, "%ld %ld", &pages, &resident) != 2) resident = 0;
-    std::fclose(f);
-  }
-  return resident * (sysconf(_SC_PAGESIZE) / 1024);
-}
+using bench::current_rss_kb;
+using bench::peak_rss_kb;
 
 // n_side^3 unit spheres on a simple cubic lattice at number density rho, T = 1.
 System<3> lattice(int n_side, double rho, std::uint64_t seed) {
@@ -126,11 +115,7 @@ Row measure(const std::string& self, int n_side, double rho, const std::string& 
     row.queue = q;
     rows.push_back(row);
   }
-  std::sort(rows.begin(), rows.end(), [](const Row& a, const Row& b) { return a.rate < b.rate; });
-  Row med = rows[rows.size() / 2];
-  std::sort(rows.begin(), rows.end(), [](const Row& a, const Row& b) { return a.bytes < b.bytes; });
-  med.bytes = rows[rows.size() / 2].bytes;
-  return med;
+  return bench::median_row(std::move(rows));
 }
 
 }  // namespace

@@ -43,6 +43,7 @@
 #include <string>
 #include <vector>
 
+#include "bench/common.hpp"
 #include "engine/tdm.hpp"
 
 using namespace matep;
@@ -74,20 +75,8 @@ constexpr double kBedE = 0.5;
 constexpr double kBedG = 9.81;       // m/s^2
 constexpr double kBedSpacing = 1.1;  // lattice spacing of the loose start, in diameters
 
-long peak_rss_kb() {
-  rusage u{};
-  getrusage(RUSAGE_SELF, &u);
-  return u.ru_maxrss;
-}
-
-long current_rss_kb() {
-  long pages = 0, resident = 0;
-  if (std::FILE* f = std::fopen("/proc/self/statm", "r")) {
-    if (std::fscanf(f, "%ld %ld", &pages, &resident) != 2) resident = 0;
-    std::fclose(f);
-  }
-  return resident * (sysconf(_SC_PAGESIZE) / 1024);
-}
+using bench::current_rss_kb;
+using bench::peak_rss_kb;
 
 double now() { return std::chrono::duration<double>(std::chrono::steady_clock::now().time_since_epoch()).count(); }
 
@@ -516,11 +505,7 @@ Row measure(const std::string& exe, const std::string& which, int n_side, int th
                  n_side * n_side * n_side, r.threads, r.rate, r.wall_s, r.rebuilds);
     rows.push_back(r);
   }
-  std::sort(rows.begin(), rows.end(), [](const Row& a, const Row& b) { return a.rate < b.rate; });
-  Row med = rows[rows.size() / 2];
-  std::sort(rows.begin(), rows.end(), [](const Row& a, const Row& b) { return a.bytes < b.bytes; });
-  med.bytes = rows[rows.size() / 2].bytes;
-  return med;
+  return bench::median_row(std::move(rows));
 }
 
 }  // namespace

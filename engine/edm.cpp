@@ -586,58 +586,26 @@ class EdmEngine {
     }
   }
 
+  // Collision with a plane wall, infinitely heavy, static or oscillating at u(t): the normal
+  // relative velocity (v - u).n is reversed with the restitution at the relative normal speed. The
+  // record carries the wall's velocity as vj (before = after; zero for a static wall).
   void collide_wall(int i, int w) {
-    if (moving_walls_ && sys_.walls[w].oscillating()) {
-      collide_moving_wall(i, w);
-      return;
-    }
     Hot<D>& a = hot_[i];
     const auto& wall = sys_.walls[w];
-    const double u = a.v.dot(wall.normal);
-    if (!(u < 0.0)) {
+    const bool moving = moving_walls_ && wall.oscillating();
+    const Vec<D> u = moving ? wall.velocity(now_) : Vec<D>::Zero();
+    if (moving) {
+      // A prediction that stopped short of the wall (the step cap of oscillating_gap_closing_time)
+      // leaves the gap open: a checkpoint, re-predicted by the caller, not a collision.
+      const double gap = (a.x - wall.position(now_)).dot(wall.normal) - a.R;
+      if (gap > 1e-9 * (a.R + std::abs(wall.amplitude.dot(wall.normal)))) return;
+    }
+    const double un = (a.v - u).dot(wall.normal);
+    if (!(un < 0.0)) {
       // Resting on the wall within round-off (gravity presses it in, no normal speed left):
       // the zero-time limit of a bouncing sequence. It counts towards the collapse detector so
       // that a run without a remedy stops instead of repeating this event forever.
       note_collision(i);
-      return;
-    }
-    double e = restitution(cold_[i].mat, wall.material, -u);
-    if (set_.tc > 0.0 && now_ - cold_[i].last < set_.tc) e = 1.0;
-    CollisionRecord<D> rec;
-    const bool log = !collision_observers_.empty();
-    if (log) rec.vi_before = a.v;
-    smooth_wall_collision(a.v, mass(i), wall.normal, e);
-    ++cold_[i].counter;
-    ++counts_.wall;
-    note_collision(i);
-    if (log) {
-      rec.time = now_;
-      rec.kind = EventKind::WallCollision;
-      rec.i = static_cast<std::uint32_t>(i);
-      rec.j = static_cast<std::uint32_t>(w);
-      rec.mi = mass(i);
-      rec.e = e;
-      rec.normal = wall.normal;
-      rec.vi_after = a.v;
-      fill_spins(rec, i, -1);
-      for (auto* o : collision_observers_) o->on_collision(rec);
-    }
-  }
-
-  // Collision with an oscillating wall (infinitely heavy, moving at u(t)): the normal relative
-  // velocity (v - u).n is reversed with the restitution at the relative normal speed. The record
-  // carries the wall's velocity as vj (before = after).
-  void collide_moving_wall(int i, int w) {
-    Hot<D>& a = hot_[i];
-    const auto& wall = sys_.walls[w];
-    const Vec<D> u = wall.velocity(now_);
-    // A prediction that stopped short of the wall (the step cap of oscillating_gap_closing_time)
-    // leaves the gap open: a checkpoint, re-predicted by the caller, not a collision.
-    const double gap = (a.x - wall.position(now_)).dot(wall.normal) - a.R;
-    if (gap > 1e-9 * (a.R + std::abs(wall.amplitude.dot(wall.normal)))) return;
-    const double un = (a.v - u).dot(wall.normal);
-    if (!(un < 0.0)) {
-      note_collision(i);  // touching without approach: as for a static wall
       return;
     }
     double e = restitution(cold_[i].mat, wall.material, -un);

@@ -108,6 +108,11 @@ class TdmEngine {
   std::vector<std::uint32_t> wl_i_, wl_w_;
   std::vector<std::uint8_t> wl_touch_;
   std::vector<Vec<D>> wl_xi_;
+  // Each wall's position and velocities at the step being computed (refreshed by forces()).
+  struct WallNow {
+    Vec<D> p, u, uh;
+  };
+  std::vector<WallNow> wall_now_;
 
   // Cell grid used by rebuild().
   std::array<int, D> nc_{};
@@ -186,12 +191,14 @@ void TdmEngine<D>::setup() {
   half_skin2_ = 0.25 * skin_ * skin_;
   L_ = sys_.upper - sys_.lower;
   g_ = sys_.gravity;
+  wall_now_.resize(sys_.walls.size());
   rot_ = plan_.friction;
   law_ = plan_.law;
 
-  x_ = sys_.x;
-  v_ = sys_.v;
-  w_ = sys_.w.empty() ? std::vector<Spin<D>>(N_, Spin<D>::Zero()) : sys_.w;
+  // Take over the system's particle state (run_tdm owns its copy of the system).
+  x_ = std::move(sys_.x);
+  v_ = std::move(sys_.v);
+  w_ = sys_.w.empty() ? std::vector<Spin<D>>(N_, Spin<D>::Zero()) : std::move(sys_.w);
   R_ = sys_.radius;
   mat_ = sys_.material;
   acc_.assign(N_, Vec<D>::Zero());
@@ -209,10 +216,6 @@ void TdmEngine<D>::setup() {
     iinv_[i] = 1.0 / (q * m_[i] * R_[i] * R_[i]);  // I = q m R^2: 2/5 spheres, 1/2 disks
     id_[i] = static_cast<std::uint32_t>(i);
   }
-  // Release the system's copy of the particle state (memory).
-  sys_.x = {};
-  sys_.v = {};
-  sys_.w = {};
 
   uniform_ = N_ > 0;
   for (std::size_t i = 1; i < N_ && uniform_; ++i) uniform_ = R_[i] == R_[0] && mat_[i] == mat_[0];
@@ -665,19 +668,10 @@ inline void TdmEngine<D>::wall_contact_force(std::uint32_t e, Acc& acc) {
   const std::uint32_t i = wl_i_[e];
   const auto& W = sys_.walls[wl_w_[e]];
   const Vec<D>& n = W.normal;
-  // An oscillating wall is at p(t_n), t_n = steps_ dt (the forces of step n are evaluated at t_n),
-  // and moves at u(t_n) (with the predicted velocities) and u(t_n - h/2) (with the half-step
-  // ones); a static wall keeps u = uh = 0.
-  double delta;
-  Vec<D> u = Vec<D>::Zero(), uh = Vec<D>::Zero();
-  if (!W.oscillating()) {
-    delta = R_[i] - (x_[i] - W.point).dot(n);
-  } else {
-    const double tn = static_cast<double>(steps_) * dt;
-    delta = R_[i] - (x_[i] - W.position(tn)).dot(n);
-    u = W.velocity(tn);
-    uh = W.velocity(tn - hdt);
-  }
+  const WallNow& now = wall_now_[wl_w_[e]];
+  const Vec<D>& u = now.u;
+  const Vec<D>& uh = now.uh;
+  const double delta = R_[i] - (x_[i] - now.p).dot(n);
   if (delta <= 0.0) {
     if (wl_touch_[e]) {
       wl_touch_[e] = 0;
@@ -733,6 +727,14 @@ void TdmEngine<D>::force_body(int t) {
 template <int D>
 void TdmEngine<D>::forces(bool fuse) {
   for (auto& a : acc_t_) a = Acc{};
+  // Wall state of this step: an oscillating wall is at p(t_n), t_n = steps_ dt (the forces of step
+  // n are evaluated at t_n), and moves at u(t_n) (with the predicted velocities) and u(t_n - h/2)
+  // (with the half-step ones); a static wall keeps u = uh = 0.
+  const double tn = static_cast<double>(steps_) * dt_;
+  for (std::size_t w = 0; w < sys_.walls.size(); ++w) {
+    const auto& W = sys_.walls[w];
+    wall_now_[w] = {W.position(tn), W.velocity(tn), W.velocity(tn - hdt_)};
+  }
   auto body = [&](int t) {
     switch (law_) {
       case NormalLaw::Linear:
@@ -995,17 +997,11 @@ RunResult<D> TdmEngine<D>::run() {
   res.time = static_cast<double>(steps_) * dt_;
   res.counts.pair = pair_begun_;
   res.counts.wall = wall_begun_;
-  res.x.resize(N_);
-  res.v.resize(N_);
-  res.radius.resize(N_);
-  res.w.resize(N_);
-  for (std::size_t i = 0; i < N_; ++i) {
-    const std::uint32_t k = id_[i];
-    res.x[k] = x_[i];
-    res.v[k] = v_full(i);
-    res.w[k] = w_full(i);
-    res.radius[k] = R_[i];
-  }
+  Snapshot<D> last = snapshot(res.time);  // the final state in particle-id order
+  res.x = std::move(last.x);
+  res.v = std::move(last.v);
+  res.w = std::move(last.w);
+  res.radius = std::move(last.radius);
   res.max_overlap = max_abs_;
   res.max_overlap_relative = max_rel_;
   SoftStats& s = res.soft;

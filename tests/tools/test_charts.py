@@ -1,0 +1,146 @@
+#!/usr/bin/python3
+"""ctest for the chart tools: runs tools/bench_accuracy.py (both cases) or tools/stability_map.py
+in --quick mode from the command line, as a user would, and checks the CSV behind each chart:
+one row per method and setting (cell), finite wall time and error wherever a run was made, and
+rows marked "refused" only where the CLI really refuses (the hybrid method while it is not
+available, a TDM step above the stability limit). Also checks that each PNG was written.
+
+    /usr/bin/python3 tests/tools/test_charts.py accuracy|map --matep build/matep --work DIR
+"""
+from __future__ import annotations
+
+import argparse
+import csv
+import math
+import shutil
+import subprocess
+import sys
+from pathlib import Path
+
+REPO = Path(__file__).resolve().parents[2]
+sys.path.insert(0, str(REPO / "tools"))
+import bench_accuracy  # noqa: E402
+import stability_map  # noqa: E402
+from matep_runs import hybrid_refusal  # noqa: E402
+
+failures: list[str] = []
+
+
+def expect(cond, what):
+    if not cond:
+        failures.append(what)
+    return cond
+
+
+def read_csv(path):
+    with open(path, newline="") as f:
+        return list(csv.DictReader(f))
+
+
+def num(s):
+    try:
+        return float(s)
+    except (TypeError, ValueError):
+        return math.nan
+
+
+def check_png(path):
+    if expect(path.exists(), f"{path} missing"):
+        data = path.read_bytes()
+        expect(data[:8] == b"\x89PNG\r\n\x1a\n" and len(data) > 10_000, f"{path}: not a PNG chart ({len(data)} bytes)")
+
+
+def run_tool(args):
+    cmd = ["/usr/bin/python3", *map(str, args)]
+    p = subprocess.run(cmd, capture_output=True, text=True, cwd=REPO)
+    sys.stdout.write(p.stdout)
+    sys.stderr.write(p.stderr)
+    if p.returncode != 0:
+        raise SystemExit(f"FAIL: {' '.join(cmd)} exited with {p.returncode}")
+
+
+def check_accuracy(matep, out, hybrid_refused):
+    for name, make in (("ball", bench_accuracy.ball_case), ("gas", bench_accuracy.gas_case)):
+        run_tool([REPO / "tools/bench_accuracy.py", name, "--matep", matep, "--out", out, "--quick"])
+        case = make(True)
+        expected = [("edm", "exact")] + [("tdm", f"t_c/{n}") for n in case["tdm"]] + \
+                   [("hybrid", f"k={k}") for k in case["hybrid"]]
+        rows = read_csv(out / f"accuracy_{name}.csv")
+        expect(list(rows[0].keys())[:6] == ["case", "method", "setting", "wall_seconds", "error", "status"],
+               f"{name}: CSV columns {list(rows[0].keys())}")
+        for method, setting in expected:
+            got = [r for r in rows if (r["method"], r["setting"]) == (method, setting)]
+            if not expect(len(got) == 1, f"{name}: {len(got)} rows for {method} {setting}, expected 1"):
+                continue
+            r = got[0]
+            wall, err = num(r["wall_seconds"]), num(r["error"])
+            if r["status"] == "refused":
+                expect(method == "hybrid" and hybrid_refused,
+                       f"{name}: {method} {setting} refused although the CLI runs it: {r['message']}")
+                continue
+            expect(math.isfinite(wall) and wall > 0, f"{name}: {method} {setting}: wall_seconds {r['wall_seconds']}")
+            expect(math.isfinite(err) and err >= 0, f"{name}: {method} {setting}: error {r['error']} ({r['status']})")
+            # physics, loosely: every method is within a few per cent of the analytic answer
+            if math.isfinite(err):
+                expect(err < 0.05, f"{name}: {method} {setting}: error {err} above 5 %")
+        if name == "ball":
+            edm = next(r for r in rows if r["method"] == "edm")
+            expect(edm["status"] == "collapse" and num(edm["error"]) < 1e-6,
+                   f"ball: EDM should collapse at the Zeno time: {edm['status']} error {edm['error']}")
+        check_png(out / f"accuracy_{name}.png")
+
+
+def check_map(matep, out, hybrid_refused):
+    run_tool([REPO / "tools/stability_map.py", "--matep", matep, "--out", out, "--quick"])
+    rows = read_csv(out / "stability_map.csv")
+    es, phis = stability_map.QUICK[:2]
+    for method, setting in stability_map.PANELS:
+        for e in es:
+            for phi in phis:
+                got = [r for r in rows if (r["method"], r["setting"]) == (method, setting)
+                       and num(r["e"]) == e and num(r["phi"]) == phi]
+                where = f"map: {method} {setting} e={e} phi={phi}"
+                if not expect(len(got) == 1, f"{where}: {len(got)} rows, expected 1"):
+                    continue
+                r = got[0]
+                expect(r["outcome"] in stability_map.COLORS, f"{where}: outcome {r['outcome']}")
+                if r["outcome"] == "refused":
+                    if method == "hybrid":
+                        expect(hybrid_refused, f"{where}: refused although the CLI runs hybrid: {r['message']}")
+                    else:
+                        expect(setting == "2 limit" and "stability limit" in r["message"],
+                               f"{where}: refused: {r['message']}")
+                    continue
+                expect(math.isfinite(num(r["wall_seconds"])) and math.isfinite(num(r["time_reached"])),
+                       f"{where}: wall_seconds {r['wall_seconds']} time_reached {r['time_reached']}")
+                if method == "edm":
+                    expect(r["outcome"] in ("stable", "collapse", "stalled"), f"{where}: {r['outcome']} {r['message']}")
+                if (method, setting) == ("tdm", "t_c/50"):
+                    expect(r["outcome"] == "stable", f"{where}: the default step is not stable: {r['message']}")
+                if (method, setting) == ("tdm", "2 limit"):
+                    expect(False, f"{where}: a step of twice the stability limit was not refused")
+    check_png(out / "stability_map.png")
+
+
+def main():
+    ap = argparse.ArgumentParser()
+    ap.add_argument("which", choices=["accuracy", "map"])
+    ap.add_argument("--matep", required=True)
+    ap.add_argument("--work", required=True)
+    args = ap.parse_args()
+    out = Path(args.work) / args.which
+    shutil.rmtree(out, ignore_errors=True)
+    out.mkdir(parents=True)
+    matep = Path(args.matep).resolve()
+    hybrid_refused = hybrid_refusal(matep) is not None
+    print(f"hybrid: {'refused by this matep' if hybrid_refused else 'available'}")
+    (check_accuracy if args.which == "accuracy" else check_map)(matep, out, hybrid_refused)
+    if failures:
+        print("FAIL:\n  " + "\n  ".join(failures))
+        return 1
+    print(f"OK: {args.which} CSVs and charts checked")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

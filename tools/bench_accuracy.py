@@ -30,7 +30,7 @@ Cases and their error measures (README: "Speed and accuracy"):
   chart draws EDM's as a dashed line).
 
 wall_seconds is summary.json's wall time (setup and outputs included): for the ball the median of
---repeat runs (default 3) made without thermo rows (45 000 rows cost more than a coarse TDM run;
+--repeat runs (default 5) made without thermo rows (45 000 rows cost more than a coarse TDM run;
 one more run writes them for the answer), for the gas the median over the starts. TDM and hybrid
 runs use one thread (run.threads = 1), as EDM does. TDM steps are t_c/n with t_c the contact
 time `matep check` reports for the TDM version of the scene. Hybrid rows use run.method =
@@ -308,7 +308,8 @@ def main(argv=None):
     ap.add_argument("--matep", default="build/matep", help="the matep executable (default build/matep)")
     ap.add_argument("--out", default="charts", help="folder for accuracy_CASE.csv and .png (default charts/)")
     ap.add_argument("--quick", action="store_true", help="tiny versions, a few seconds (the test suite's mode)")
-    ap.add_argument("--repeat", type=int, default=None, help="runs per point, median wall time (default 3, quick 1)")
+    ap.add_argument("--repeat", type=int, default=None,
+                    help="ball: timed runs per point, median wall time (default 5, quick 1)")
     ap.add_argument("--work", default=None, help="keep the runs' outputs in this folder (default: a temporary one)")
     ap.add_argument("--plot-only", action="store_true", help="redraw the PNG from the CSV in --out, running nothing")
     args = ap.parse_args(argv)
@@ -325,7 +326,7 @@ def main(argv=None):
     matep = Path(args.matep).resolve()
     if not matep.exists():
         ap.error(f"--matep {args.matep}: no such file (build it: cmake --build build --target matep)")
-    repeat = args.repeat or (1 if args.quick else 3)
+    repeat = args.repeat or (1 if args.quick else 5)
     out.mkdir(parents=True, exist_ok=True)
     with tempfile.TemporaryDirectory(prefix="matep_bench_") as tmp:
         work = Path(args.work) if args.work else Path(tmp)

@@ -112,9 +112,9 @@ def sweep(matep, work: Path, es, phis, count, end, log) -> list[dict]:
                        "max_overlap_relative": float(s.get("max_overlap_relative", math.nan)) if s else math.nan,
                        "message": r.message}
                 rows.append(row)
+                stopped = row["outcome"] in ("collapse", "blow-up", "stalled")
                 log(f"e {e:<4} phi {phi:<5} {method:6s} {setting:9s} {row['outcome']:8s} "
-                    f"wall {row['wall_seconds']:.3g} s" + (f"  t = {row['time_reached']:.4g}"
-                                                           if row["outcome"] in ("collapse", "blow-up", "stalled") else ""))
+                    f"wall {row['wall_seconds']:.3g} s" + (f"  t = {row['time_reached']:.4g}" if stopped else ""))
                 if method == "tdm" and setting == "t_c/50" and not math.isnan(tc):
                     row["message"] = row["message"] or f"t_c = {tc:.6g}, stability limit {lim:.6g}"
     return rows

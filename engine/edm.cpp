@@ -8,10 +8,15 @@
 #include <cmath>
 #include <optional>
 #include <stdexcept>
+#include <unordered_map>
 
 #include "contact/hard.hpp"
 #include "contact/predict.hpp"
+#include "contact/soft.hpp"
+#include "contact/timestep.hpp"
 #include "engine/huge_pages.hpp"
+#include "engine/hybrid.hpp"
+#include "engine/soft_plan.hpp"
 #include "scheduler/calendar_queue.hpp"
 #include "scheduler/heap_queue.hpp"
 
@@ -19,11 +24,6 @@ namespace matep {
 
 namespace {
 
-// Moment of inertia factor q = I / (m r^2): 2/5 for solid spheres, 1/2 for disks.
-template <int D>
-constexpr double inertia_factor() {
-  return D == 3 ? 0.4 : 0.5;
-}
 
 template <int D>
 struct alignas(D == 3 ? 64 : 16) Hot {
@@ -33,10 +33,13 @@ struct alignas(D == 3 ? 64 : 16) Hot {
   double R;      // radius
 };
 
-template <int D, class Queue>
+// Hybrid = true adds the soft set of the hybrid engine (engine/hybrid.hpp): particle modes, TDM
+// substeps as events of the same queue and the switching rule. Hybrid = false compiles it out.
+template <int D, class Queue, bool Hybrid = false>
 class EdmEngine {
  public:
-  EdmEngine(System<D>&& system, const EdmSettings& set, const std::vector<Observer<D>*>& obs)
+  EdmEngine(System<D>&& system, const EdmSettings& set, const std::vector<Observer<D>*>& obs,
+            const HybridSettings* hybrid = nullptr)
       : sys_(std::move(system)), set_(set), N_(static_cast<int>(sys_.size())) {
     const System<D>& sys = sys_;
     for (auto* o : obs) {
@@ -51,6 +54,7 @@ class EdmEngine {
     L_ = hi_ - lo_;
     window_ = set.collapse_window > 0.0 ? set.collapse_window : 1e-9 * set.end_time;
 
+    if constexpr (Hybrid) hybrid_setup(*hybrid);
     // Copy the input into the engine's arrays one array at a time, releasing each input array
     // as soon as it is copied (peak memory).
     hot_.resize(N_);
@@ -71,11 +75,14 @@ class EdmEngine {
     // m = density * ball volume (System::mass), as a per-material factor times R^D.
     for (const auto& mat : sys_.materials) mass_factor_.push_back(mat.density * ball_volume<D>(1.0));
     // The queue is allocated after the input arrays are gone (peak memory).
-    queue_.emplace(static_cast<std::size_t>(N_) + 3);  // particles + sampler, end, snapshots
+    queue_.emplace(static_cast<std::size_t>(N_) + 4);  // particles + sampler, end, snapshots, substep
     all_elastic_ = true;
     for (const auto& mat : sys.materials) all_elastic_ = all_elastic_ && mat.restitution.is_elastic();
     for (const auto& wall : sys.walls) moving_walls_ = moving_walls_ || wall.oscillating();
-    build_cells(2.0 * rmax);
+    // Hybrid: cells at least one largest diameter plus the capture skin wide, so that the cells
+    // around a particle hold every particle within the skin of it.
+    build_cells(2.0 * rmax + (Hybrid ? skin_ : 0.0));
+    if constexpr (Hybrid) hybrid_arrays();
   }
 
   template <class V>
@@ -92,8 +99,10 @@ class EdmEngine {
     const auto wall0 = std::chrono::steady_clock::now();
     // System events: one id for the thermo sampler, one for the end of the run.
     const int sample_id = N_, end_id = N_ + 1, snapshot_id = N_ + 2;
+    if constexpr (Hybrid) hybrid_start();
     emit_sample(0.0, /*interval=*/0.0);
-    for (int i = 0; i < N_; ++i) predict(i, 0.0);
+    for (int i = 0; i < N_; ++i)
+      if (!Hybrid || cold_[i].mode == kHard) predict(i, 0.0);
     if (set_.thermo_interval > 0.0 && set_.thermo_interval < set_.end_time * (1.0 - 1e-12))
       queue_->set(sample_id, set_.thermo_interval);
     queue_->set(end_id, set_.end_time);
@@ -125,6 +134,13 @@ class EdmEngine {
         if (next < set_.end_time * (1.0 - 1e-12)) queue_->set(sample_id, next);
         continue;
       }
+      if constexpr (Hybrid) {
+        if (id == substep_id_) {
+          substep(t);
+          if (!status_.empty()) break;
+          continue;
+        }
+      }
       if (id == snapshot_id) {
         emit_snapshot(t);
         last_snapshot_time = t;
@@ -154,7 +170,9 @@ class EdmEngine {
     }
     // Bring every particle to the final time and write the last row.
     const double t_end = status_.empty() ? set_.end_time : now_;
-    for (int i = 0; i < N_; ++i) advance(i, t_end);
+    // Soft particles stay at their last substep (less than one substep before t_end).
+    for (int i = 0; i < N_; ++i)
+      if (!Hybrid || cold_[i].mode == kHard || cold_[i].mode == kPending) advance(i, t_end);
     if (t_end > last_sample_time || counts_.samples == 1) emit_sample(t_end, t_end - last_sample_time);
     if (snapshots && t_end > last_snapshot_time) emit_snapshot(t_end);
 
@@ -162,6 +180,7 @@ class EdmEngine {
     res.message = message_;
     res.time = t_end;
     res.counts = counts_;
+    if constexpr (Hybrid) hybrid_result(res);
     measure_overlaps(res);
     // Free the scheduling state before the result's arrays are allocated (peak memory).
     queue_.reset();
@@ -329,6 +348,9 @@ class EdmEngine {
 
   // ---- motion ---------------------------------------------------------------------------------
   void advance(int i, double t) {
+    if constexpr (Hybrid) {
+      if (cold_[i].mode == kSoft || cold_[i].mode == kAsleep) return;  // moved by the substeps
+    }
     Hot<D>& h = hot_[i];
     const double dt = t - h.t;
     if (dt == 0.0) return;
@@ -376,14 +398,22 @@ class EdmEngine {
 
   // Tests the neighbours of i (all, or one layer) and keeps the earliest pair event if it beats
   // the current best (best, type, partner).
+  // Hybrid: soft, pending and sleeping neighbours are skipped (a hard particle joins the soft set
+  // before it touches one) and a soft or sleeping one makes i an interface particle.
   void test_pairs(int i, double now, double& best, std::uint8_t& type, int& partner, int layer_axis = -1,
-                  int layer_dir = 0) const {
+                  int layer_dir = 0) {
     const Hot<D>& hi = hot_[i];
     const Vec<D> xi = hi.x, vi = hi.v;
     const double Ri = hi.R;
     for_neighbours(
         i,
         [&](int j, const Vec<D>& shift) {
+          if constexpr (Hybrid) {
+            if (cold_[j].mode != kHard) {
+              if (cold_[j].mode != kPending) mark_interface(i);
+              return;
+            }
+          }
           const Hot<D>& hj = hot_[j];
           const double dtj = now - hj.t;
           Vec<D> r = xi - hj.x - shift - hj.v * dtj;
@@ -489,6 +519,9 @@ class EdmEngine {
   }
 
   void handle(int i, double t) {
+    if constexpr (Hybrid) {
+      if (cold_[i].mode != kHard) return;  // an event left from before a switch (never scheduled)
+    }
     if (cold_[i].cross_t <= cold_[i].ev_t) {
       advance(i, t);
       ++counts_.cell;
@@ -524,6 +557,9 @@ class EdmEngine {
           return;
         }
         advance(j, t);
+        if constexpr (Hybrid) {
+          if (soft_rule_pair(i, j, t)) return;
+        }
         collide_pair(i, j);
         predict(i, t);
         predict(j, t);
@@ -531,6 +567,9 @@ class EdmEngine {
       }
       case kWall: {
         advance(i, t);
+        if constexpr (Hybrid) {
+          if (soft_rule_wall(i, cold_[i].partner, t)) return;
+        }
         collide_wall(i, cold_[i].partner);
         predict(i, t);
         return;
@@ -648,12 +687,17 @@ class EdmEngine {
     snap.radius.resize(N_);
     for (int i = 0; i < N_; ++i) {
       const Hot<D>& h = hot_[i];
-      const double dt = t - h.t;
+      const double dt = moved_by_events(i) ? t - h.t : 0.0;
       snap.x[i] = h.x + h.v * dt + (0.5 * dt * dt) * g_;
       snap.v[i] = h.v + g_ * dt;
       snap.radius[i] = h.R;
     }
     snap.w = sys_.w;
+    if constexpr (Hybrid) {
+      snap.mode.resize(N_);
+      for (int i = 0; i < N_; ++i) snap.mode[i] = cold_[i].mode == kPending ? std::uint8_t{kHard} : cold_[i].mode;
+      snap.cluster = soft_clusters();
+    }
     for (auto* o : snapshot_observers_) o->on_snapshot(snap);
   }
 
@@ -668,7 +712,7 @@ class EdmEngine {
     double mv2 = 0.0, pe = 0.0, rot = 0.0;
     for (int i = 0; i < N_; ++i) {
       const Hot<D>& h = hot_[i];
-      const double dt = t - h.t;
+      const double dt = moved_by_events(i) ? t - h.t : 0.0;
       Vec<D> v = h.v, x = h.x;
       if (dt != 0.0) {
         x += h.v * dt + (0.5 * dt * dt) * g_;
@@ -685,6 +729,10 @@ class EdmEngine {
     s.potential_energy = pe;
     s.temperature = N_ > 0 ? mv2 / (D * N_) : 0.0;
     s.collisions = counts_.collisions();
+    if constexpr (Hybrid) {
+      s.elastic_energy = soft_elastic_energy();
+      s.collisions += hstats_soft_begun_;
+    }
     // P V = N T + (1/(d dt)) sum_collisions r_ij . dp_i  (REFERENCES 2.3; Smallenburg's EDMD).
     // The kinetic part uses the mean of the kinetic energies at the two ends of the interval.
     const double ke_mean = prev_ke_ < 0.0 ? s.kinetic_energy : 0.5 * (prev_ke_ + s.kinetic_energy);
@@ -719,6 +767,741 @@ class EdmEngine {
     res.max_overlap_relative = worst_rel;
   }
 
+  // ==== hybrid ==================================================================================
+  // Everything below is compiled only with Hybrid = true (engine/hybrid.hpp states the rule).
+  // Soft particles carry the TDM state of engine/tdm.cpp's scheme: between substeps vh_ holds
+  // v(t - h/2), acc_ a(t - h) (for the predicted velocity of the dashpots), f_/tq_ the force and
+  // torque at t; hot_.x and hot_.t the position and time of the last substep, hot_.v and sys_.w the
+  // full-step velocity and spin v(t) = v(t - h/2) + h/2 a(t) (for samples, snapshots and release).
+  enum : std::uint8_t { kHard = 0, kSoft = 1, kPending = 2, kAsleep = 3 };
+
+  // Whether i moves ballistically between its events (hard or pending), i.e. its stored state may
+  // be extrapolated in time; a soft or sleeping particle is at its last substep.
+  bool moved_by_events(int i) const {
+    if constexpr (Hybrid) return cold_[i].mode == kHard || cold_[i].mode == kPending;
+    return true;
+  }
+
+  struct PairEntry {
+    int i, j;
+    std::uint8_t touch;
+    Vec<D> xi;      // tangential spring
+    SoftContact c;  // the pair's contact constants
+  };
+  struct WallEntry {
+    int i, w;
+    std::uint8_t touch;
+    Vec<D> xi;
+    SoftContact c;
+  };
+
+  void hybrid_setup(const HybridSettings& hs) {
+    hset_ = hs;
+    plan_ = plan_soft<D>(sys_);
+    h_ = hs.dt > 0.0 ? hs.dt : plan_.default_dt;
+    if (!(h_ < plan_.max_stable_dt))
+      throw std::invalid_argument(fmt::format(
+          "hybrid.dt: {} is above the stability limit {:.6g} of the stiffest contact ({}); the default step is {:.6g}",
+          h_, plan_.max_stable_dt, plan_.limiting, plan_.default_dt));
+    hdt_ = 0.5 * h_;
+    rot_ = plan_.friction;
+    double dmin = kNever;
+    for (double r : sys_.radius) dmin = std::min(dmin, 2.0 * r);
+    skin_ = hs.skin * (sys_.radius.empty() ? 0.0 : dmin);
+    // The skin must cover the largest relative approach in one substep (two particles at the
+    // largest expected impact speed each): no contact can begin between two capture checks.
+    skin_ = std::max(skin_, 4.0 * plan_.impact_speed * h_);
+    kstab_ = hs.stability;
+    hyst_ = hs.hysteresis > 0.0 ? hs.hysteresis : 10.0 * kstab_ * plan_.contact_time;
+    rest_time_ = hs.rest_time > 0.0 ? hs.rest_time : 20.0 * plan_.contact_time;
+    cost_interval_ = hs.cost_ratio * h_;
+    repeats_ = std::max(1, hs.repeats);
+    substep_id_ = N_ + 3;
+    if (rot_ && sys_.w.empty()) sys_.w.assign(N_, Spin<D>::Zero());
+    minv_.resize(N_);
+    iinv_.resize(N_);
+    for (int i = 0; i < N_; ++i) {
+      const double m = sys_.mass(static_cast<std::size_t>(i));
+      minv_[i] = 1.0 / m;
+      iinv_[i] = 1.0 / (inertia_factor<D>() * m * sys_.radius[i] * sys_.radius[i]);
+    }
+  }
+
+  void hybrid_arrays() {
+    vh_.assign(N_, Vec<D>::Zero());
+    acc_.assign(N_, Vec<D>::Zero());
+    f_.assign(N_, Vec<D>::Zero());
+    disp_.assign(N_, Vec<D>::Zero());
+    if (rot_) {
+      wh_.assign(N_, Spin<D>::Zero());
+      alpha_.assign(N_, Spin<D>::Zero());
+      tq_.assign(N_, Spin<D>::Zero());
+    }
+    last_contact_.assign(N_, 0.0);
+    quiet_since_.assign(N_, 0.0);
+    ema_.assign(N_, kNever);
+    slot_.assign(N_, -1);
+    touching_.assign(N_, 0);
+    near_.assign(N_, 0);
+    recent_.assign(N_, {-1, -1});
+    rapid_.assign(N_, 0);
+    recent_t_.assign(N_, {-kNever, -kNever});
+    wall_now_.resize(sys_.walls.size());
+  }
+
+  double inv_mass(int i) const { return minv_[i]; }
+
+  void mark_interface(int i) {
+    if (cold_[i].iface) return;
+    cold_[i].iface = 1;
+    iface_.push_back(i);
+  }
+
+  // Marks the hard neighbours of i as interface particles (i has just become soft or moved cell).
+  void mark_neighbours(int i) {
+    for_neighbours(i, [&](int j, const Vec<D>&) {
+      if (cold_[j].mode == kHard) mark_interface(j);
+    });
+  }
+
+  void start_clock(double t) {
+    if (clock_) return;
+    clock_ = true;
+    clock_t0_ = t;
+    clock_n_ = 0;
+    queue_->set(substep_id_, t);
+  }
+
+  // Contact duration of the soft law between i and j (w >= 0: i against wall w) at normal speed u.
+  double contact_time_of(int i, int j, int w, double u) const {
+    const int ma = cold_[i].mat;
+    const double Ri = hot_[i].R;
+    PairParams p;
+    const SoftLaw* law;
+    if (w >= 0) {
+      law = &plan_.wall_laws[static_cast<std::size_t>(w) * plan_.materials + ma];
+      p = wall_params(plan_.elastic[ma], Ri, mass(i), plan_.wall_elastic[w]);
+    } else {
+      const int mb = cold_[j].mat;
+      law = &plan_.laws[static_cast<std::size_t>(ma) * plan_.materials + mb];
+      p = pair_params(plan_.elastic[ma], Ri, mass(i), plan_.elastic[mb], hot_[j].R, mass(j));
+    }
+    return soft_contact_time(*law, p, std::max(u, 1e-300));
+  }
+
+  // Whether i's collision at t completes `repeats` consecutive collisions each within `window` of
+  // the previous one (the stability rule); counts them.
+  bool rapid(int i, double t, double window) {
+    if (t - cold_[i].last < window) return ++rapid_[i] >= repeats_;
+    rapid_[i] = 0;
+    return false;
+  }
+
+  // The smoothed interval between i's collisions (cost rule), updated at each collision of i.
+  void note_interval(int i, double t) {
+    const double dt = t - cold_[i].last;
+    ema_[i] = ema_[i] >= kNever ? dt : 0.5 * (ema_[i] + dt);
+  }
+  void note_partner(int i, int j, double t) {
+    recent_[i][1] = recent_[i][0];
+    recent_t_[i][1] = recent_t_[i][0];
+    recent_[i][0] = j;
+    recent_t_[i][0] = t;
+  }
+
+  // Stability and cost rules at a pair collision of hard particles i and j, both at time t and
+  // touching. Returns true when the pair (and its cluster) turned soft instead of colliding.
+  bool soft_rule_pair(int i, int j, double t) {
+    const double since = t - std::max(cold_[i].last, cold_[j].last);
+    bool stability = false;
+    if (since < hyst_) {
+      Vec<D> r = hot_[i].x - hot_[j].x;
+      min_image(r);
+      const double u = std::abs((hot_[i].v - hot_[j].v).dot(r)) / r.norm();
+      const double window = kstab_ * contact_time_of(i, j, -1, u);
+      stability = rapid(i, t, window) | rapid(j, t, window);
+    }
+    if (!(since < hyst_)) rapid_[i] = rapid_[j] = 0;
+    note_interval(i, t);
+    note_interval(j, t);
+    const bool cost = !stability && (ema_[i] < cost_interval_ || ema_[j] < cost_interval_);
+    if (!stability && !cost) {
+      note_partner(i, j, t);
+      note_partner(j, i, t);
+      return false;
+    }
+    const std::uint8_t reason = stability ? kByStability : kByCost;
+    make_pending(i, t, reason);
+    make_pending(j, t, reason);
+    return true;
+  }
+
+  bool soft_rule_wall(int i, int w, double t) {
+    const auto& wall = sys_.walls[w];
+    const Vec<D> u = wall.velocity(t);
+    if (moving_walls_ && wall.oscillating()) {  // a checkpoint of the bracketing, not an impact
+      const double gap = (hot_[i].x - wall.position(t)).dot(wall.normal) - hot_[i].R;
+      if (gap > 1e-9 * (hot_[i].R + std::abs(wall.amplitude.dot(wall.normal)))) return false;
+    }
+    const double un = (hot_[i].v - u).dot(wall.normal);
+    const double since = t - cold_[i].last;
+    // Resting on the wall (no normal speed left) is the zero-time limit of a bouncing sequence.
+    bool stability = !(un < 0.0);
+    if (!stability && since < hyst_) stability = rapid(i, t, kstab_ * contact_time_of(i, -1, w, -un));
+    if (!(since < hyst_)) rapid_[i] = 0;
+    note_interval(i, t);
+    const bool cost = !stability && ema_[i] < cost_interval_;
+    if (!stability && !cost) return false;
+    make_pending(i, t, stability ? kByStability : kByCost);
+    return true;
+  }
+
+  enum : std::uint8_t { kByStability = 0, kByCost = 1, kByCluster = 2, kByCapture = 3, kByOverlap = 4 };
+
+  // Hard i stops flying: it joins the soft set at the next substep, together with the particles it
+  // collided with within the stability window (its cluster), recursively.
+  void make_pending(int i, double t, std::uint8_t reason) {
+    if (cold_[i].mode != kHard) return;
+    cold_[i].mode = kPending;
+    pending_reason_.push_back(reason);
+    pending_.push_back(i);
+    queue_->erase(i);
+    ++cold_[i].counter;  // partners' predictions with i are stale
+    start_clock(t);
+    // The cluster: partners of collisions within the stability window k t_c (t_c of the plan).
+    for (int k = 0; k < 2; ++k) {
+      const int j = recent_[i][k];
+      if (j < 0 || cold_[j].mode != kHard) continue;
+      if (t - recent_t_[i][k] < kstab_ * plan_.contact_time) make_pending(j, t, kByCluster);
+    }
+  }
+
+  void min_image(Vec<D>& r) const {
+    for (int k = 0; k < D; ++k) {
+      if (!sys_.periodic[k]) continue;
+      if (r[k] > 0.5 * L_[k])
+        r[k] -= L_[k];
+      else if (r[k] < -0.5 * L_[k])
+        r[k] += L_[k];
+    }
+  }
+
+  void log_switch(int i, double t, EventKind kind) {
+    if (collision_observers_.empty()) return;
+    CollisionRecord<D> rec;
+    rec.time = t;
+    rec.kind = kind;
+    rec.i = static_cast<std::uint32_t>(i);
+    rec.j = static_cast<std::uint32_t>(i);
+    rec.mi = mass(i);
+    rec.vi_before = rec.vi_after = hot_[i].v;
+    if (!sys_.w.empty()) rec.wi_before = rec.wi_after = sys_.w[i];
+    for (auto* o : collision_observers_) o->on_collision(rec);
+  }
+
+  // i (hard or pending, flying ballistically) joins the soft set at substep time t.
+  void join(int i, double t, std::uint8_t reason) {
+    advance(i, t);
+    if (cold_[i].mode == kHard) {
+      queue_->erase(i);
+      ++cold_[i].counter;
+    }
+    cold_[i].mode = kSoft;
+    cold_[i].iface = 0;
+    slot_[i] = static_cast<int>(soft_.size());
+    soft_.push_back(i);
+    // Ballistic until now: v(t - h/2) = v(t) - h/2 g and a(t - h) = g, so that the predicted
+    // velocity of the dashpots v(t - h/2) + h/2 a(t - h) is v(t).
+    vh_[i] = hot_[i].v - hdt_ * g_;
+    acc_[i] = g_;
+    f_[i].setZero();
+    disp_[i].setZero();
+    if (rot_) {
+      wh_[i] = sys_.w[i];
+      alpha_[i].setZero();
+      tq_[i].setZero();
+    }
+    last_contact_[i] = t;
+    quiet_since_[i] = t;
+    ema_[i] = kNever;
+    ++hstats_.to_soft;
+    switch (reason) {
+      case kByStability: ++hstats_.by_stability; break;
+      case kByCost: ++hstats_.by_cost; break;
+      case kByCluster: ++hstats_.by_cluster; break;
+      case kByCapture: ++hstats_.by_capture; break;
+      default: ++hstats_.by_overlap; break;
+    }
+    log_switch(i, t, EventKind::ToSoft);
+    if (!dirty_) add_entries(i, t);
+    mark_neighbours(i);
+    wake_near(i);
+  }
+
+  // Soft i returns to EDM at substep time t with its full-step velocity and spin.
+  void release(int i, double t) {
+    cold_[i].mode = kHard;
+    const int s = slot_[i];
+    soft_[s] = soft_.back();
+    slot_[soft_[s]] = s;
+    soft_.pop_back();
+    slot_[i] = -1;
+    dirty_ = true;
+    hot_[i].t = t;
+    cold_[i].last = -kNever;  // its collisions as a soft particle do not count for the rules
+    ema_[i] = kNever;
+    recent_[i] = {-1, -1};
+    ++cold_[i].counter;
+    ++hstats_.to_hard;
+    log_switch(i, t, EventKind::ToHard);
+    predict(i, t);
+  }
+
+  // Pair and wall entries of soft i with the soft particles (and walls) within the skin.
+  void add_entries(int i, double t) {
+    const Vec<D> xi = hot_[i].x;
+    const double Ri = hot_[i].R;
+    for_neighbours(i, [&](int j, const Vec<D>& shift) {
+      if (cold_[j].mode != kSoft) return;
+      const double cut = Ri + hot_[j].R + skin_;
+      if ((xi - hot_[j].x - shift).squaredNorm() >= cut * cut) return;
+      const int a = std::min(i, j), b = std::max(i, j);
+      pe_.push_back({a, b, 0, Vec<D>::Zero(), pair_contact_of(a, b)});
+    });
+    for (std::size_t w = 0; w < sys_.walls.size(); ++w) {
+      const auto& W = sys_.walls[w];
+      const double reach = W.oscillating() ? 2.0 * std::abs(W.amplitude.dot(W.normal)) : 0.0;
+      if ((xi - W.position(t)).dot(W.normal) - Ri < skin_ + reach)
+        we_.push_back({i, static_cast<int>(w), 0, Vec<D>::Zero(),
+                       wall_contact(plan_, static_cast<int>(w), cold_[i].mat, Ri, mass(i))});
+    }
+  }
+
+  SoftContact pair_contact_of(int a, int b) const {
+    return pair_contact(plan_, cold_[a].mat, hot_[a].R, mass(a), cold_[b].mat, hot_[b].R, mass(b));
+  }
+
+  // All entries anew, the springs of touching contacts carried over by particle ids.
+  void rebuild_entries(double t) {
+    ++hstats_.rebuilds;
+    std::unordered_map<std::uint64_t, Vec<D>> springs;
+    auto key = [](int a, int b) { return (static_cast<std::uint64_t>(a) << 32) | static_cast<std::uint32_t>(b); };
+    for (const auto& e : pe_)
+      if (e.touch && cold_[e.i].mode == kSoft && cold_[e.j].mode == kSoft) springs[key(e.i, e.j)] = e.xi;
+    std::unordered_map<std::uint64_t, Vec<D>> wsprings;
+    for (const auto& e : we_)
+      if (e.touch && cold_[e.i].mode == kSoft) wsprings[key(e.i, e.w)] = e.xi;
+    pe_.clear();
+    we_.clear();
+    for (const int i : soft_) {
+      disp_[i].setZero();
+      const Vec<D> xi = hot_[i].x;
+      const double Ri = hot_[i].R;
+      for_neighbours(i, [&](int j, const Vec<D>& shift) {
+        if (j < i || cold_[j].mode != kSoft) return;
+        const double cut = Ri + hot_[j].R + skin_;
+        if ((xi - hot_[j].x - shift).squaredNorm() >= cut * cut) return;
+        PairEntry e{i, j, 0, Vec<D>::Zero(), pair_contact_of(i, j)};
+        if (const auto it = springs.find(key(i, j)); it != springs.end()) {
+          e.touch = 1;
+          e.xi = it->second;
+        }
+        pe_.push_back(e);
+      });
+      const std::size_t w0 = we_.size();
+      add_walls_only(i, t);
+      for (std::size_t k = w0; k < we_.size(); ++k)
+        if (const auto it = wsprings.find(key(i, we_[k].w)); it != wsprings.end()) {
+          we_[k].touch = 1;
+          we_[k].xi = it->second;
+        }
+    }
+    dirty_ = false;
+  }
+  void add_walls_only(int i, double t) {
+    const Vec<D> xi = hot_[i].x;
+    const double Ri = hot_[i].R;
+    for (std::size_t w = 0; w < sys_.walls.size(); ++w) {
+      const auto& W = sys_.walls[w];
+      const double reach = W.oscillating() ? 2.0 * std::abs(W.amplitude.dot(W.normal)) : 0.0;
+      if ((xi - W.position(t)).dot(W.normal) - Ri < skin_ + reach)
+        we_.push_back({i, static_cast<int>(w), 0, Vec<D>::Zero(),
+                       wall_contact(plan_, static_cast<int>(w), cold_[i].mat, Ri, mass(i))});
+    }
+  }
+
+  // Moves soft i into its cell after a substep (periodic wrap; escape through an open face).
+  void relocate(int i, double t) {
+    Hot<D>& h = hot_[i];
+    std::array<int, D> c{};
+    for (int k = 0; k < D; ++k) {
+      if (sys_.periodic[k]) {
+        if (h.x[k] >= hi_[k]) h.x[k] -= L_[k];
+        else if (h.x[k] < lo_[k]) h.x[k] += L_[k];
+      } else if (!(h.x[k] >= lo_[k] - h.R && h.x[k] <= hi_[k] + h.R) && status_.empty()) {
+        status_ = std::isfinite(h.x[k]) ? "escaped" : "unstable";
+        message_ = std::isfinite(h.x[k])
+                       ? fmt::format("particle {} left the domain along axis {} at t = {:.17g} (position {:.6g}); "
+                                     "add a wall there or make the axis periodic",
+                                     i, k, t, h.x[k])
+                       : fmt::format("particle {} reached a non-finite position at t = {:.17g}: the substep {} is "
+                                     "too long for the contacts (stability limit {:.6g})",
+                                     i, t, h_, plan_.max_stable_dt);
+      }
+      const int cc = std::isfinite(h.x[k]) ? static_cast<int>(std::floor((h.x[k] - lo_[k]) / cw_[k])) : 0;
+      c[k] = std::clamp(cc, 0, nc_[k] - 1);
+    }
+    if (c != cold_[i].cell) {
+      cell_remove(i);
+      cold_[i].cell = c;
+      cell_insert(i);
+      mark_neighbours(i);
+    }
+  }
+
+  // One TDM substep at time t (README "Hybrid dynamics", "Substeps").
+  void substep(double t) {
+    ++hstats_.substeps;
+    // 1. Drift the awake soft particles from t - h to t with the forces of t - h.
+    const double h = h_;
+    for (const int i : soft_) {
+      const Vec<D> a = f_[i] * minv_[i] + g_;
+      acc_[i] = a;
+      f_[i].setZero();
+      vh_[i] += h * a;
+      const Vec<D> dx = h * vh_[i];
+      hot_[i].x += dx;
+      hot_[i].t = t;
+      disp_[i] += dx;
+      if (disp_[i].squaredNorm() > 0.25 * skin_ * skin_) dirty_ = true;
+      if (rot_) {
+        alpha_[i] = tq_[i] * iinv_[i];
+        tq_[i].setZero();
+        wh_[i] += h * alpha_[i];
+      }
+      relocate(i, t);
+    }
+    hstats_.soft_particle_steps += soft_.size();
+    if (!status_.empty()) return;
+    // 2. Joins: pending particles, then hard particles within the skin of a soft one.
+    for (std::size_t k = 0; k < pending_.size(); ++k)
+      if (cold_[pending_[k]].mode == kPending) join(pending_[k], t, pending_reason_[k]);
+    pending_.clear();
+    pending_reason_.clear();
+    capture(t);
+    // 3. Entries, 4. forces at t.
+    if (dirty_) rebuild_entries(t);
+    soft_forces(t);
+    // 5. Full-step velocities; release and rest.
+    for (std::size_t s = 0; s < soft_.size();) {
+      const int i = soft_[s];
+      Vec<D> a = f_[i] * minv_[i] + g_;
+      hot_[i].v = vh_[i] + hdt_ * a;
+      if (rot_) sys_.w[i] = wh_[i] + hdt_ * (tq_[i] * iinv_[i]);
+      if (touching_[i]) last_contact_[i] = t;
+      const bool free = !touching_[i] && !near_[i] && t - last_contact_[i] >= hyst_;
+      touching_[i] = near_[i] = 0;
+      if (free) {
+        release(i, t);  // swaps the last soft particle into slot s
+        continue;
+      }
+      ++s;
+    }
+    hstats_.max_soft = std::max<std::uint64_t>(hstats_.max_soft, soft_.size() + asleep_);
+    // 6. The next substep while anything is soft, pending or next to a soft particle.
+    if (!soft_.empty() || !pending_.empty() || !iface_.empty()) {
+      ++clock_n_;
+      queue_->set(substep_id_, clock_t0_ + static_cast<double>(clock_n_) * h_);
+    } else {
+      clock_ = false;
+    }
+  }
+
+  // Hard interface particles within the skin of a soft (or sleeping) one join the soft set.
+  void capture(double t) {
+    std::size_t keep = 0;
+    const std::size_t n = iface_.size();
+    for (std::size_t k = 0; k < n; ++k) {
+      const int i = iface_[k];
+      if (cold_[i].mode != kHard) {
+        cold_[i].iface = 0;
+        continue;
+      }
+      const Hot<D>& hi = hot_[i];
+      const double dt = t - hi.t;
+      const Vec<D> xi = hi.x + hi.v * dt + (0.5 * dt * dt) * g_;
+      bool any = false, in = false;
+      for_neighbours(i, [&](int j, const Vec<D>& shift) {
+        const std::uint8_t m = cold_[j].mode;
+        if (m != kSoft && m != kAsleep) return;
+        any = true;
+        const double cut = hi.R + hot_[j].R + skin_;
+        if ((xi - hot_[j].x - shift).squaredNorm() < cut * cut) in = true;
+      });
+      if (in) {
+        cold_[i].iface = 0;
+        join(i, t, kByCapture);
+      } else if (any) {
+        iface_[keep++] = i;
+      } else {
+        cold_[i].iface = 0;
+      }
+    }
+    // Particles marked during the joins above were appended after n.
+    for (std::size_t k = n; k < iface_.size(); ++k) iface_[keep++] = iface_[k];
+    iface_.resize(keep);
+  }
+
+  // Contact forces of the soft set at time t (engine/tdm.cpp's pair_range and wall_contact_force,
+  // with the law chosen at run time): dashpots at the predicted velocity v(t - h/2) + h/2 a(t - h),
+  // the spring grown by h times the half-step contact velocity, the first-step weight of a contact
+  // that begins inside the step (onset_fraction, at_onset there).
+  void soft_forces(double t) {
+    const double h = h_, hdt = hdt_;
+    double virial = 0.0;
+    for (auto& e : pe_) {
+      const int i = e.i, j = e.j;
+      Vec<D> dx = hot_[i].x - hot_[j].x;
+      min_image(dx);
+      const double Rs = hot_[i].R + hot_[j].R;
+      const double r2 = dx.squaredNorm();
+      const double cut = Rs + skin_;
+      if (r2 < cut * cut) near_[i] = near_[j] = 1;
+      if (r2 >= Rs * Rs) {
+        if (e.touch) {
+          e.touch = 0;
+          e.xi.setZero();
+        }
+        continue;
+      }
+      const double r = std::sqrt(r2);
+      const Vec<D> n = dx * (1.0 / r);
+      const double delta = Rs - r;
+      SoftContact c = e.c;
+      double onset = -1.0;
+      if (!e.touch) {
+        e.touch = 1;
+        ++hstats_soft_begun_;
+        onset = hyb_onset_fraction(delta, -(vh_[i] - vh_[j]).dot(n), h);
+        if (onset >= 0.0 && c.normal == NormalLaw::Linear) {
+          c.gn *= onset + 0.5;
+          c.gt *= onset + 0.5;
+        }
+      }
+      touching_[i] = touching_[j] = 1;
+      const Vec<D> vpi = vh_[i] + hdt * acc_[i], vpj = vh_[j] + hdt * acc_[j];
+      Vec<D> F;
+      if (!rot_) {
+        F = normal_force(c, delta, -(vpi - vpj).dot(n)) * n;
+      } else {
+        const double li = pair_lever_arm(hot_[i].R, delta), lj = pair_lever_arm(hot_[j].R, delta);
+        ContactKinematics<D> k;
+        k.delta = delta;
+        k.n = n;
+        k.v = contact_velocity<D>(vpi, wh_[i] + hdt * alpha_[i], li, vpj, wh_[j] + hdt * alpha_[j], lj, n);
+        k.dxi = h * contact_velocity<D>(vh_[i], wh_[i], li, vh_[j], wh_[j], lj, n);
+        if (onset >= 0.0) k.dxi *= onset;
+        ContactHistory<D> hist{e.xi};
+        const ContactForce<D> cf = soft_contact_force<D>(c, k, hist);
+        e.xi = hist.xi;
+        F = cf.force;
+        const Spin<D> m = lever_moment<D>(n, cf.tangential);
+        tq_[i] -= li * m;
+        tq_[j] -= lj * m;
+      }
+      f_[i] += F;
+      f_[j] -= F;
+      virial += F.dot(dx);
+    }
+    for (std::size_t w = 0; w < sys_.walls.size(); ++w) {
+      const auto& W = sys_.walls[w];
+      wall_now_[w] = {W.position(t), W.velocity(t), W.velocity(t - hdt)};
+    }
+    for (auto& e : we_) {
+      const int i = e.i;
+      const auto& W = sys_.walls[e.w];
+      const Vec<D>& n = W.normal;
+      const auto& now = wall_now_[e.w];
+      const double delta = hot_[i].R - (hot_[i].x - now.p).dot(n);
+      if (delta <= 0.0) {
+        if (e.touch) {
+          e.touch = 0;
+          e.xi.setZero();
+        }
+        continue;
+      }
+      SoftContact c = e.c;
+      double onset = -1.0;
+      if (!e.touch) {
+        e.touch = 1;
+        ++hstats_soft_begun_;
+        onset = hyb_onset_fraction(delta, -(vh_[i] - now.uh).dot(n), h);
+        if (onset >= 0.0 && c.normal == NormalLaw::Linear) {
+          c.gn *= onset + 0.5;
+          c.gt *= onset + 0.5;
+        }
+      }
+      touching_[i] = 1;
+      const Vec<D> vi = vh_[i] + hdt * acc_[i] - now.u;
+      if (!rot_) {
+        f_[i] += normal_force(c, delta, -vi.dot(n)) * n;
+      } else {
+        const double li = wall_lever_arm(hot_[i].R, delta);
+        ContactKinematics<D> k;
+        k.delta = delta;
+        k.n = n;
+        k.v = vi - spin_cross<D>(li * Spin<D>(wh_[i] + hdt * alpha_[i]), n);
+        k.dxi = h * (vh_[i] - now.uh - spin_cross<D>(li * wh_[i], n));
+        if (onset >= 0.0) k.dxi *= onset;
+        ContactHistory<D> hist{e.xi};
+        const ContactForce<D> cf = soft_contact_force<D>(c, k, hist);
+        e.xi = hist.xi;
+        f_[i] += cf.force;
+        tq_[i] += contact_torque<D>(n, cf.tangential, li);
+      }
+    }
+    virial_ += virial * h;  // impulse times distance over the substep, as the hard collisions
+  }
+
+  // A contact found overlapping by delta, approached at speed u over the step, began delta/u
+  // earlier (engine/tdm.cpp onset_fraction).
+  static double hyb_onset_fraction(double delta, double u, double h) {
+    if (!(u > 0.0)) return -1.0;
+    return delta < u * h ? delta / (u * h) : 1.0;
+  }
+
+  // Elastic energy stored in the soft contacts (engine/tdm.cpp sample()).
+  double soft_elastic_energy() const {
+    double el = 0.0;
+    auto stored = [&](const SoftContact& c, double delta, const Vec<D>& xi) {
+      double u, kt = c.kt;
+      if (c.normal == NormalLaw::Linear) {
+        u = 0.5 * c.kn * delta * delta;
+      } else {
+        u = 0.4 * c.kn * delta * delta * std::sqrt(delta);
+        kt *= std::sqrt(delta);
+      }
+      return u + 0.5 * kt * xi.squaredNorm();
+    };
+    for (const auto& e : pe_) {
+      if (!e.touch) continue;
+      Vec<D> dx = hot_[e.i].x - hot_[e.j].x;
+      min_image(dx);
+      const double delta = hot_[e.i].R + hot_[e.j].R - dx.norm();
+      if (delta > 0.0) el += stored(e.c, delta, e.xi);
+    }
+    for (const auto& e : we_) {
+      if (!e.touch) continue;
+      const auto& W = sys_.walls[e.w];
+      const double delta = hot_[e.i].R - (hot_[e.i].x - W.position(hot_[e.i].t)).dot(W.normal);
+      if (delta > 0.0) el += stored(e.c, delta, e.xi);
+    }
+    return el;
+  }
+
+  // Soft cluster ids (connected by touching contacts; -1 for hard particles).
+  std::vector<std::int32_t> soft_clusters() const {
+    std::vector<std::int32_t> parent(N_);
+    for (int i = 0; i < N_; ++i) parent[i] = i;
+    auto find = [&](int a) {
+      while (parent[a] != a) a = parent[a] = parent[parent[a]];
+      return a;
+    };
+    for (const auto& e : pe_)
+      if (e.touch) {
+        const int a = find(e.i), b = find(e.j);
+        if (a != b) parent[std::max(a, b)] = std::min(a, b);
+      }
+    std::vector<std::int32_t> id(N_, -1), label(N_, -1);
+    std::int32_t next = 0;
+    for (int i = 0; i < N_; ++i) {
+      if (cold_[i].mode != kSoft && cold_[i].mode != kAsleep) continue;
+      const int r = find(i);
+      if (label[r] < 0) label[r] = next++;
+      id[i] = label[r];
+    }
+    return id;
+  }
+
+  // Overlapping particles (and particles overlapping a wall) at t = 0 start soft.
+  void hybrid_start() {
+    for (int i = 0; i < N_; ++i) {
+      bool over = false;
+      for (const auto& W : sys_.walls)
+        over = over || (hot_[i].x - W.position(0.0)).dot(W.normal) < hot_[i].R;
+      if (!over)
+        for_neighbours(i, [&](int j, const Vec<D>& shift) {
+          const double s = hot_[i].R + hot_[j].R;
+          over = over || (hot_[i].x - hot_[j].x - shift).squaredNorm() < s * s;
+        });
+      if (over) {
+        cold_[i].mode = kPending;
+        pending_.push_back(i);
+        pending_reason_.push_back(kByOverlap);
+      }
+    }
+    if (!pending_.empty()) start_clock(0.0);
+  }
+
+  void wake_near(int) {}
+
+  void hybrid_result(RunResult<D>& res) {
+    res.method = "hybrid";
+    HybridStats& s = hstats_;
+    s.stability = kstab_;
+    s.hysteresis = hyst_;
+    s.skin = skin_;
+    s.cost_ratio = hset_.cost_ratio;
+    s.rest_speed = hset_.rest_speed;
+    s.rest_time = rest_time_;
+    s.soft_at_end = soft_.size() + asleep_;
+    res.hybrid = s;
+    res.mode.resize(N_);
+    for (int i = 0; i < N_; ++i) res.mode[i] = cold_[i].mode == kPending ? std::uint8_t{kHard} : cold_[i].mode;
+    SoftStats& t = res.soft;
+    t.steps = hstats_.substeps;
+    t.dt = h_;
+    t.default_dt = plan_.default_dt;
+    t.max_stable_dt = plan_.max_stable_dt;
+    t.contact_time = plan_.contact_time;
+    t.rayleigh_time = plan_.rayleigh_time;
+    t.impact_speed = plan_.impact_speed;
+    t.skin = skin_;
+    t.rebuilds = hstats_.rebuilds;
+    for (const auto& e : pe_) t.contacts += e.touch;
+    for (const auto& e : we_) t.contacts += e.touch;
+    t.threads = 1;
+  }
+
+  // Hybrid state.
+  HybridSettings hset_;
+  SoftPlan plan_;
+  double h_ = 0.0, hdt_ = 0.0, skin_ = 0.0, kstab_ = 0.0, hyst_ = 0.0, rest_time_ = 0.0, cost_interval_ = 0.0;
+  bool rot_ = false;
+  int substep_id_ = -1;
+  bool clock_ = false;
+  double clock_t0_ = 0.0;
+  std::uint64_t clock_n_ = 0;
+  bool dirty_ = true;
+  std::uint64_t asleep_ = 0;
+  std::uint64_t hstats_soft_begun_ = 0;
+  HybridStats hstats_;
+  std::vector<Vec<D>> vh_, acc_, f_, disp_;
+  std::vector<Spin<D>> wh_, alpha_, tq_;
+  std::vector<double> minv_, iinv_, last_contact_, quiet_since_, ema_;
+  std::vector<int> slot_, soft_, pending_, iface_;
+  std::vector<std::uint8_t> pending_reason_, touching_, near_;
+  std::vector<int> rapid_;
+  int repeats_ = 1;
+  std::vector<std::array<int, 2>> recent_;
+  std::vector<std::array<double, 2>> recent_t_;
+  std::vector<PairEntry> pe_;
+  std::vector<WallEntry> we_;
+  struct WallNow {
+    Vec<D> p, u, uh;
+  };
+  std::vector<WallNow> wall_now_;
+
   System<D> sys_;  // materials, walls, geometry (particle arrays released)
   EdmSettings set_;
   int N_;
@@ -748,6 +1531,8 @@ class EdmEngine {
     int mat = 0;
     std::uint8_t type = kNone;  // kind of ev_t
     std::uint8_t aux = 0;       // crossing: 2 * axis + up
+    std::uint8_t mode = 0;      // hybrid: kHard, kSoft, kPending, kAsleep
+    std::uint8_t iface = 0;     // hybrid: a hard particle on the interface list
   };
   Array<Cold> cold_;
 
@@ -773,6 +1558,30 @@ RunResult<D> run_edm(System<D> system, const EdmSettings& settings, QueueKind qu
   if (queue == QueueKind::Heap) return EdmEngine<D, HeapQueue>(std::move(system), settings, observers).run();
   return EdmEngine<D, CalendarQueue>(std::move(system), settings, observers).run();
 }
+
+template <int D>
+SoftPlan hybrid_preflight(const System<D>& system, const HybridSettings& settings) {
+  SoftPlan plan = plan_soft<D>(system);
+  const double h = settings.dt > 0.0 ? settings.dt : plan.default_dt;
+  if (!(h < plan.max_stable_dt))
+    throw std::invalid_argument(fmt::format(
+        "hybrid.dt: {} is above the stability limit {:.6g} of the stiffest contact ({}); the default step is {:.6g}",
+        h, plan.max_stable_dt, plan.limiting, plan.default_dt));
+  return plan;
+}
+
+template <int D>
+RunResult<D> run_hybrid(System<D> system, const EdmSettings& edm, const HybridSettings& hybrid,
+                        const std::vector<Observer<D>*>& observers) {
+  return EdmEngine<D, CalendarQueue, true>(std::move(system), edm, observers, &hybrid).run();
+}
+
+template SoftPlan hybrid_preflight<2>(const System<2>&, const HybridSettings&);
+template SoftPlan hybrid_preflight<3>(const System<3>&, const HybridSettings&);
+template RunResult<2> run_hybrid<2>(System<2>, const EdmSettings&, const HybridSettings&,
+                                    const std::vector<Observer<2>*>&);
+template RunResult<3> run_hybrid<3>(System<3>, const EdmSettings&, const HybridSettings&,
+                                    const std::vector<Observer<3>*>&);
 
 template RunResult<2> run_edm<2>(System<2>, const EdmSettings&, QueueKind, const std::vector<Observer<2>*>&);
 template RunResult<3> run_edm<3>(System<3>, const EdmSettings&, QueueKind, const std::vector<Observer<3>*>&);

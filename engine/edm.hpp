@@ -44,6 +44,29 @@ struct SoftStats {
   double particle_steps_per_second = 0.0;
 };
 
+// Hybrid figures of a run (all zero for pure EDM and TDM runs).
+struct HybridStats {
+  std::uint64_t to_soft = 0;          // switches hard -> soft, all reasons
+  std::uint64_t by_stability = 0;     //   a collision within k t_c of the previous one
+  std::uint64_t by_cost = 0;          //   collision interval below the cost crossover
+  std::uint64_t by_cluster = 0;       //   recent collision partner of a particle that turned soft
+  std::uint64_t by_capture = 0;       //   came within the skin of a soft particle
+  std::uint64_t by_overlap = 0;       //   overlapping at t = 0
+  std::uint64_t to_hard = 0;          // releases soft -> hard
+  std::uint64_t slept = 0;            // particles put to sleep (rest rule)
+  std::uint64_t woken = 0;            // sleeping particles woken
+  std::uint64_t substeps = 0;         // TDM substep events
+  std::uint64_t soft_particle_steps = 0;  // sum over substeps of the awake soft particles
+  std::uint64_t max_soft = 0;         // largest soft set (awake + asleep)
+  std::uint64_t soft_at_end = 0;      // soft particles (awake + asleep) at the end
+  std::uint64_t rebuilds = 0;         // soft neighbour-list builds
+  double stability = 0.0;             // k
+  double hysteresis = 0.0;            // release hysteresis [s]
+  double skin = 0.0;                  // capture skin [m]
+  double cost_ratio = 0.0;
+  double rest_speed = 0.0, rest_time = 0.0;
+};
+
 template <int D>
 struct RunResult {
   std::string method = "edm";  // the engine that produced it
@@ -58,6 +81,8 @@ struct RunResult {
   std::vector<double> radius;
   std::vector<Spin<D>> w;             // empty when the system had no spins (all zero)
   SoftStats soft;                     // TDM and hybrid runs
+  HybridStats hybrid;                 // hybrid runs
+  std::vector<std::uint8_t> mode;     // hybrid: final mode per particle (0 hard, 1 soft, 3 asleep)
 };
 
 // Runs the system from t = 0 to settings.end_time (or until it stops early). The system is taken

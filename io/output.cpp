@@ -269,11 +269,12 @@ void VtkSnapshotWriter<D>::on_snapshot(const Snapshot<D>& snap) {
   fmt::print(f, "        <DataArray type=\"Int32\" Name=\"id\" format=\"ascii\">\n");
   for (std::size_t i = 0; i < n; ++i) fmt::print(f, "{}\n", i);
   fmt::print(f, "        </DataArray>\n");
-  // Every particle of an event-driven run is hard and in no soft cluster.
+  // Mode 0 hard, 1 soft, 3 asleep and the soft cluster id (-1: none). A snapshot without them
+  // comes from a run that does not set them (0 and -1 are written).
   fmt::print(f, "        <DataArray type=\"UInt8\" Name=\"mode\" format=\"ascii\">\n");
-  for (std::size_t i = 0; i < n; ++i) std::fputs("0\n", f);
+  for (std::size_t i = 0; i < n; ++i) fmt::print(f, "{}\n", snap.mode.empty() ? 0 : int(snap.mode[i]));
   fmt::print(f, "        </DataArray>\n        <DataArray type=\"Int32\" Name=\"cluster\" format=\"ascii\">\n");
-  for (std::size_t i = 0; i < n; ++i) std::fputs("-1\n", f);
+  for (std::size_t i = 0; i < n; ++i) fmt::print(f, "{}\n", snap.cluster.empty() ? -1 : snap.cluster[i]);
   fmt::print(f, "        </DataArray>\n      </PointData>\n      <Verts>\n"
                 "        <DataArray type=\"Int32\" Name=\"connectivity\" format=\"ascii\">\n");
   for (std::size_t i = 0; i < n; ++i) fmt::print(f, "{}\n", i);
@@ -380,6 +381,18 @@ void write_summary(const std::string& path, const SummaryInfo& info, const RunRe
                s.steps, json_number(s.dt), json_number(s.default_dt), json_number(s.max_stable_dt),
                json_number(s.contact_time), json_number(s.rayleigh_time), json_number(s.impact_speed),
                json_number(s.skin), s.rebuilds, s.contacts, s.threads, json_number(s.particle_steps_per_second));
+  }
+  if (r.method == "hybrid") {
+    const HybridStats& h = r.hybrid;
+    fmt::print(f, "  \"hybrid\": {{\"to_soft\": {}, \"by_stability\": {}, \"by_cost\": {}, \"by_cluster\": {}, "
+               "\"by_capture\": {}, \"by_overlap\": {}, \"to_hard\": {}, \"slept\": {}, \"woken\": {}, "
+               "\"substeps\": {}, \"soft_particle_steps\": {}, \"max_soft\": {}, \"soft_at_end\": {}, "
+               "\"stability\": {}, \"hysteresis\": {}, \"skin\": {}, \"cost_ratio\": {}, \"rest_speed\": {}, "
+               "\"rest_time\": {}}},\n",
+               h.to_soft, h.by_stability, h.by_cost, h.by_cluster, h.by_capture, h.by_overlap, h.to_hard, h.slept,
+               h.woken, h.substeps, h.soft_particle_steps, h.max_soft, h.soft_at_end, json_number(h.stability),
+               json_number(h.hysteresis), json_number(h.skin), json_number(h.cost_ratio), json_number(h.rest_speed),
+               json_number(h.rest_time));
   }
   fmt::print(f, "  \"status\": {},\n", json_string(r.status));
   fmt::print(f, "  \"message\": {}\n", json_string(r.message));

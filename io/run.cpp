@@ -8,6 +8,7 @@
 #include <numbers>
 #include <stdexcept>
 
+#include "engine/hybrid.hpp"
 #include "engine/tdm.hpp"
 #include "io/output.hpp"
 
@@ -37,10 +38,34 @@ TdmSettings tdm_settings(const Scene& s) {
   return t;
 }
 
-// The soft-sphere checks of the engine, reported as scene errors (file: key: message).
+HybridSettings hybrid_settings(const Scene& s) {
+  HybridSettings h;
+  h.dt = s.dt.value_or(0.0);
+  const HybridSpec& y = s.hybrid;
+  if (y.stability) h.stability = *y.stability;
+  if (y.repeats) h.repeats = *y.repeats;
+  if (y.hysteresis) h.hysteresis = *y.hysteresis;
+  if (y.skin) h.skin = *y.skin;
+  if (y.cost_ratio) h.cost_ratio = *y.cost_ratio;
+  if (y.rest_speed) h.rest_speed = *y.rest_speed;
+  if (y.rest_time) h.rest_time = *y.rest_time;
+  return h;
+}
+
+// The soft-sphere checks of the engine, reported as scene errors (file: key: message). A hybrid
+// run names its substep run.dt like a TDM run.
 template <int D>
 SoftPlan soft_preflight(const Scene& scene, const System<D>& sys) {
   try {
+    if (scene.method == "hybrid") {
+      try {
+        return hybrid_preflight<D>(sys, hybrid_settings(scene));
+      } catch (const std::invalid_argument& e) {
+        std::string m = e.what();
+        if (m.rfind("hybrid.dt", 0) == 0) m.replace(0, 9, "run.dt");
+        throw std::invalid_argument(m);
+      }
+    }
     return tdm_preflight<D>(sys, tdm_settings(scene));
   } catch (const std::invalid_argument& e) {
     throw SceneError(fmt::format("{}: {}", scene.path, e.what()));
@@ -78,12 +103,10 @@ void check_runnable(const Scene& scene, const System<D>& sys) {
 template <int D>
 RunOutcome run_system(const Scene& scene, const System<D>& sys, const std::string& dir,
                       const ProgressFn& progress) {
-  if (scene.method != "edm" && scene.method != "tdm")
-    throw SceneError(fmt::format("{}: run.method: \"{}\" is not available in this version of matep "
-                                 "(available: \"edm\", \"tdm\")",
-                                 scene.path, scene.method));
   check_runnable(scene, sys);
   const bool soft = scene.method == "tdm";
+  const bool hybrid = scene.method == "hybrid";
+  if (hybrid) soft_preflight(scene, sys);
   if (soft) {
     soft_preflight(scene, sys);
     if (scene.output.events)
@@ -111,7 +134,9 @@ RunOutcome run_system(const Scene& scene, const System<D>& sys, const std::strin
     observers.push_back(static_cast<Observer<D>*>(prog.get()));
   }
   const QueueKind q = scene.queue == "heap" ? QueueKind::Heap : QueueKind::Calendar;
-  RunResult<D> res = soft ? run_tdm<D>(sys, tdm_settings(scene), observers) : run_edm<D>(sys, settings, q, observers);
+  RunResult<D> res = soft     ? run_tdm<D>(sys, tdm_settings(scene), observers)
+                     : hybrid ? run_hybrid<D>(sys, settings, hybrid_settings(scene), observers)
+                              : run_edm<D>(sys, settings, q, observers);
   if (log) log->close();
   write_final_state<D>(dir + "/final_state.csv", res);
   SummaryInfo info;
@@ -174,8 +199,11 @@ std::string describe(const Scene& scene, const System<D>& sys) {
       if (m.friction && *m.friction > 0.0)
         s += fmt::format("    note: friction = {} is not used by smooth EDM\n", *m.friction);
     }
-  } else if (scene.method == "tdm") {
-    s += fmt::format(" (time-driven soft {}, velocity Verlet)\n", D == 3 ? "spheres" : "disks");
+  } else if (scene.method == "tdm" || scene.method == "hybrid") {
+    if (scene.method == "tdm")
+      s += fmt::format(" (time-driven soft {}, velocity Verlet)\n", D == 3 ? "spheres" : "disks");
+    else
+      s += fmt::format(" (hard {0} in EDM, dense clusters as soft {0} in TDM substeps)\n", D == 3 ? "spheres" : "disks");
     const SoftPlan plan = soft_preflight(scene, sys);
     for (std::size_t a = 0; a < sys.materials.size(); ++a) {
       const auto& m = sys.materials[a];
@@ -196,6 +224,16 @@ std::string describe(const Scene& scene, const System<D>& sys) {
     s += fmt::format("             contact time {:.6g} at impact speed {:.4g}, Rayleigh time {:.6g}; about {:.3g} steps\n",
                      plan.contact_time, plan.impact_speed, plan.rayleigh_time,
                      dt > 0.0 ? std::ceil(scene.end_time / dt) : 0.0);
+    if (scene.method == "hybrid") {
+      const HybridSettings h = hybrid_settings(scene);
+      s += fmt::format("hybrid rule  soft when a collision follows the previous one within {} t_c, or the collision\n"
+                       "             interval falls below {} substeps (cost); capture skin {} of the smallest\n"
+                       "             diameter; release after {:.6g} s without contact{}\n",
+                       h.stability, h.cost_ratio, h.skin,
+                       h.hysteresis > 0.0 ? h.hysteresis : 10.0 * h.stability * plan.contact_time,
+                       h.rest_speed > 0.0 ? fmt::format("; clusters slower than {} m/s sleep", h.rest_speed)
+                                          : std::string());
+    }
   } else {
     s += " (not available in this version)\n";
   }

@@ -500,7 +500,7 @@ void build_system(const TableReader& top, const TableReader& run, const fs::path
   const auto group_tables = named_tables(top, "particles");
   if (group_tables.empty()) fail(file, "particles", "missing (a scene needs at least one [particles.NAME] table)");
   Builder<D> b{file, base_dir, sys, {}, {}};
-  if (scene.method == "tdm") b.file_overlap = kSoftFileOverlap;
+  if (scene.method == "tdm" || scene.method == "hybrid") b.file_overlap = kSoftFileOverlap;
   for (std::size_t gi = 0; gi < group_tables.size(); ++gi) {
     b.read_group(group_tables[gi].first, group_tables[gi].second);
   }
@@ -555,7 +555,7 @@ Scene build_scene(toml::table& root, const std::string& file, const fs::path& ba
   Scene scene;
   scene.path = file;
   const TableReader top(scene.path, root, "");
-  top.allow({"run", "domain", "material", "particles", "wall", "output"});
+  top.allow({"run", "domain", "material", "particles", "wall", "output", "hybrid"});
 
   // [run]
   const TableReader run = top.sub("run");
@@ -574,6 +574,23 @@ Scene build_scene(toml::table& root, const std::string& file, const fs::path& ba
   scene.max_events = static_cast<std::uint64_t>(run.integer_or("max_events", 0, kNonNegative));
   scene.dt = run.number_opt("dt", kPositive);
   if (const auto th = run.integer_opt("threads", Range{1.0, 1048576.0})) scene.threads = static_cast<int>(*th);
+
+  // [hybrid]
+  if (top.has("hybrid")) {
+    const TableReader hy = top.sub("hybrid");
+    hy.allow({"stability", "repeats", "hysteresis", "skin", "cost_ratio", "rest_speed", "rest_time"});
+    if (scene.method != "hybrid")
+      fail(file, "hybrid", fmt::format("the [hybrid] table is used only with run.method = \"hybrid\" (run.method is \"{}\")",
+                                       scene.method));
+    HybridSpec& h = scene.hybrid;
+    h.stability = hy.number_opt("stability", kPositive);
+    if (const auto r = hy.integer_opt("repeats", Range{1.0, 1000.0})) h.repeats = static_cast<int>(*r);
+    h.hysteresis = hy.number_opt("hysteresis", kPositive);
+    h.skin = hy.number_opt("skin", kPositive);
+    h.cost_ratio = hy.number_opt("cost_ratio", kPositive);
+    h.rest_speed = hy.number_opt("rest_speed", kNonNegative);
+    h.rest_time = hy.number_opt("rest_time", kPositive);
+  }
 
   // [output]
   if (top.has("output")) {

@@ -15,7 +15,7 @@
 namespace matep {
 
 // Particles read from a file may overlap by up to this fraction of their contact distance when
-// run.method = "tdm" (a soft-sphere state, e.g. a settled bed written by an earlier run); any
+// run.method = "tdm" or "hybrid" (a soft-sphere state, e.g. a settled bed written by an earlier run); any
 // overlap beyond round-off is an error for hard spheres.
 inline constexpr double kSoftFileOverlap = 0.05;
 
@@ -29,6 +29,12 @@ struct OutputSpec {
   double thermo_interval = 0.0;    // 0 = rows at t = 0 and at the end only
   bool events = false;             // write events.bin
   double snapshot_interval = 0.0;  // VTK snapshots every interval (0 = none)
+};
+
+// [hybrid]: the switching rule of run.method = "hybrid" (engine/hybrid.hpp); unset = default.
+struct HybridSpec {
+  std::optional<double> stability, hysteresis, skin, cost_ratio, rest_speed, rest_time;
+  std::optional<int> repeats;
 };
 
 struct Scene {
@@ -45,6 +51,7 @@ struct Scene {
   std::optional<double> dt;       // run.dt (soft-sphere time step, > 0); unset = engine's choice
   std::optional<int> threads;     // run.threads (soft-sphere, >= 1); unset = engine's choice
   OutputSpec output;
+  HybridSpec hybrid;
   std::vector<std::string> group_names;  // [particles.NAME] tables in file order
   std::vector<int> group;                // per particle: index into group_names
   std::variant<System<2>, System<3>> system;

@@ -1,0 +1,52 @@
+// Hybrid dynamics: one event queue in which hard particles fly between predicted collisions (the
+// EDM engine of engine/edm.cpp) and a soft set, the particles of dense or collapsing clusters, is
+// advanced by fixed TDM substeps (the scheme and contact laws of engine/tdm.hpp), each substep an
+// event of the same queue. README "Hybrid dynamics" states the rule and its measured parameters:
+//  * stability: a hard particle that collides again within `stability` * t_c of its previous
+//    collision (t_c = the soft contact duration of that pair at that impact speed) turns soft,
+//    with the particles it collided with in that window (its cluster); the collision is then
+//    resolved by the soft contact law, which starts within the substep as in a pure TDM run;
+//  * cost: the same when its smoothed interval between collisions falls below cost_ratio * dt
+//    (the crossover where TDM substeps are cheaper than EDM events);
+//  * capture: a hard particle within `skin` of a soft one joins the soft set at the next substep
+//    (the skin covers the largest relative approach in one substep, so no contact is missed);
+//  * release: a soft particle without contact for `hysteresis` and without a particle within the
+//    skin returns to EDM with its current velocity and spin;
+//  * rest: a soft cluster whose particles all stay slower than `rest_speed` for `rest_time` is
+//    put to sleep (not integrated; its contacts keep their springs) until a particle comes within
+//    the skin of one of its members.
+#pragma once
+
+#include <cstdint>
+#include <vector>
+
+#include "engine/edm.hpp"
+#include "engine/observer.hpp"
+#include "engine/soft_plan.hpp"
+#include "engine/system.hpp"
+
+namespace matep {
+
+struct HybridSettings {
+  double dt = 0.0;          // TDM substep; 0 = the soft plan's default step
+  double stability = 2.0;   // k: a collision within k t_c of the previous one turns the cluster soft
+  int repeats = 3;          // ... when it is the repeats-th such collision in a row
+  double hysteresis = 0.0;  // contact-free time before release; 0 = 10 k t_c (of the plan's t_c)
+  double skin = 0.1;        // capture distance, as a fraction of the smallest diameter
+  double cost_ratio = 10.0; // cost of one EDM collision per particle / cost of one TDM particle-step
+  double rest_speed = 0.0;  // sleeping threshold [m/s]; 0 = no sleeping
+  double rest_time = 0.0;   // how long a cluster must stay below rest_speed; 0 = 20 t_c
+};
+
+// The checks run_hybrid makes before it starts (the soft plan, the substep against the stability
+// limit). Throws std::invalid_argument naming the key.
+template <int D>
+SoftPlan hybrid_preflight(const System<D>& system, const HybridSettings& settings);
+
+// Runs the system from t = 0 to edm.end_time with the hybrid rule. Particles that overlap at
+// t = 0 (a settled soft state) start soft; every other particle starts hard.
+template <int D>
+RunResult<D> run_hybrid(System<D> system, const EdmSettings& edm, const HybridSettings& hybrid,
+                        const std::vector<Observer<D>*>& observers = {});
+
+}  // namespace matep

@@ -1,0 +1,346 @@
+// The hybrid engine (engine/hybrid.hpp) against analytic answers and against pure EDM and TDM:
+// the bouncing ball's rest time (Zeno), a settling bed, a dilute gas that stays hard, and the
+// switches themselves (momentum to round-off, energy through both switches).
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <cmath>
+#include <numeric>
+#include <random>
+
+#include <fmt/format.h>
+
+#include "engine/edm.hpp"
+#include "engine/hybrid.hpp"
+#include "engine/tdm.hpp"
+#include "tests/support/systems.hpp"
+
+namespace matep {
+namespace {
+
+#ifdef MATEP_SANITIZED
+constexpr bool kSanitized = true;  // instrumented build: smaller systems, same checks
+#else
+constexpr bool kSanitized = false;
+#endif
+
+constexpr double kG = 9.81;
+
+// Records every thermo sample and every switch record.
+template <int D>
+struct Recorder final : Observer<D> {
+  std::vector<ThermoSample> samples;
+  std::vector<CollisionRecord<D>> switches;
+  std::uint64_t collisions = 0;
+  bool wants_collisions() const override { return true; }
+  void on_collision(const CollisionRecord<D>& r) override {
+    if (r.kind == EventKind::ToSoft || r.kind == EventKind::ToHard)
+      switches.push_back(r);
+    else
+      ++collisions;
+  }
+  void on_sample(const ThermoSample& s) override { samples.push_back(s); }
+};
+
+// ---- bouncing ball -----------------------------------------------------------------------------
+
+// A steel ball (R = 5 cm) dropped from h = 1 m (its bottom) onto a floor, e = 0.8, Hertz contact.
+System<3> ball_system(double e) {
+  System<3> s;
+  s.lower = Vec<3>(-0.5, -0.5, 0.0);
+  s.upper = Vec<3>(0.5, 0.5, 2.0);
+  s.periodic = {true, true, false};
+  s.gravity = Vec<3>(0.0, 0.0, -kG);
+  Material m;
+  m.name = "steel";
+  m.density = 7800.0;
+  m.restitution = Restitution::constant(e);
+  m.contact = "hertz";
+  m.young = 2e11;
+  m.poisson = 0.3;
+  s.materials.push_back(m);
+  Wall<3> floor;
+  floor.name = "floor";
+  floor.point = Vec<3>::Zero();
+  floor.normal = Vec<3>(0.0, 0.0, 1.0);
+  s.walls.push_back(floor);
+  s.x.push_back(Vec<3>(0.0, 0.0, 1.05));
+  s.v.push_back(Vec<3>::Zero());
+  s.radius.push_back(0.05);
+  s.material.push_back(0);
+  return s;
+}
+
+// The last sample time at which the ball's bottom is more than eps above the floor: the height
+// comes from the potential energy -m g.x of the samples.
+double rest_time(const std::vector<ThermoSample>& samples, double m, double R, double eps) {
+  double last = 0.0;
+  for (const auto& s : samples)
+    if (s.potential_energy / (m * kG) - R > eps) last = s.time;
+  return last;
+}
+
+TEST(HybridBall, ComesToRestAtTheZenoTimeAndTdmAgrees) {
+  const double h = 1.0, e = 0.8;
+  const double zeno = std::sqrt(2.0 * h / kG) * (1.0 + e) / (1.0 - e);  // 4.0637 s
+  const System<3> sys = ball_system(e);
+  const double m = sys.mass(0), R = sys.radius[0];
+  EdmSettings es;
+  es.end_time = 4.5;
+  es.thermo_interval = 2e-4;
+  // Pure EDM: infinitely many bounces before the Zeno time; it stops with "collapse", there.
+  {
+    const RunResult<3> r = run_edm<3>(sys, es, QueueKind::Calendar);
+    EXPECT_EQ(r.status, "collapse");
+    EXPECT_NEAR(r.time, zeno, 1e-3 * zeno);
+  }
+  // Hybrid: hard bounces until they come within k t_c of each other, then the soft contact.
+  Recorder<3> hy;
+  const RunResult<3> rh = run_hybrid<3>(sys, es, HybridSettings{}, {&hy});
+  ASSERT_EQ(rh.status, "ok") << rh.message;
+  EXPECT_EQ(rh.hybrid.to_soft, 1u);
+  EXPECT_EQ(rh.hybrid.by_stability, 1u);
+  EXPECT_GT(rh.counts.wall, 20u);  // the early bounces stay hard
+  // eps = 1 um: the remaining flight time is below 2 sqrt(2 eps/g)/(1 - e) = 4.5 ms (0.1 %).
+  const double th = rest_time(hy.samples, m, R, 1e-6);
+  EXPECT_NEAR(th, zeno, 0.01 * zeno);
+  // Pure TDM at the same step.
+  TdmSettings ts;
+  ts.end_time = es.end_time;
+  ts.thermo_interval = es.thermo_interval;
+  Recorder<3> td;
+  const RunResult<3> rt = run_tdm<3>(sys, ts, {&td});
+  ASSERT_EQ(rt.status, "ok") << rt.message;
+  const double tt = rest_time(td.samples, m, R, 1e-6);
+  EXPECT_NEAR(tt, zeno, 0.01 * zeno);
+  EXPECT_NEAR(th, tt, 0.01 * zeno);
+  // The ball ends at rest on the floor, overlapped by the static Hertz overlap (m g/K)^(2/3),
+  // K = (4/3) E* sqrt(R) (rigid floor, E* = E/(1 - nu^2)).
+  const double K = 4.0 / 3.0 * (2e11 / (1.0 - 0.09)) * std::sqrt(R);
+  const double d_static = std::pow(m * kG / K, 2.0 / 3.0);
+  // Still ringing on the Hertz spring (its damping vanishes with the overlap), within d_static.
+  EXPECT_NEAR(rh.x[0][2], R - d_static, d_static);
+  EXPECT_LT(rh.v[0].norm(), 1e-3);
+}
+
+// ---- the switches ----------------------------------------------------------------------------
+
+// Three elastic spheres on a line, no gravity: A flies at B, B is pushed into C right away (C
+// sits just beyond B), so B's second collision follows its first within k t_c: the cluster turns
+// soft; once apart for the hysteresis it is released to EDM again.
+TEST(HybridSwitch, OneClusterSoftAndBackConservesMomentumAndEnergy) {
+  System<3> s;
+  s.lower = Vec<3>(0.0, 0.0, 0.0);
+  s.upper = Vec<3>(40.0, 10.0, 10.0);
+  s.periodic = {true, true, true};
+  Material m;
+  m.name = "elastic";
+  m.density = 1.0 / ball_volume<3>(0.5);
+  m.restitution = Restitution::constant(1.0);
+  m.contact = "linear";
+  m.stiffness = 1e5;
+  s.materials.push_back(m);
+  const double gap = 1e-4;
+  const std::vector<Vec<3>> x = {Vec<3>(10.0, 5.0, 5.0), Vec<3>(12.0, 5.1, 5.0), Vec<3>(13.0 + gap, 5.25, 5.02)};
+  const std::vector<Vec<3>> v = {Vec<3>(1.0, 0.02, -0.01), Vec<3>(0.0, 0.0, 0.0), Vec<3>(-0.1, 0.0, 0.03)};
+  for (int i = 0; i < 3; ++i) {
+    s.x.push_back(x[i]);
+    s.v.push_back(v[i]);
+    s.radius.push_back(0.5);
+    s.material.push_back(0);
+  }
+  Vec<3> p0 = Vec<3>::Zero();
+  double ke0 = 0.0;
+  for (int i = 0; i < 3; ++i) {
+    p0 += s.mass(i) * v[i];
+    ke0 += 0.5 * s.mass(i) * v[i].squaredNorm();
+  }
+  EdmSettings es;
+  es.end_time = 8.0;
+  es.thermo_interval = 0.01;
+  HybridSettings hs;
+  hs.stability = 1e3;  // t_c = pi sqrt(m*/k) = 7e-3: a collision within 7 of the previous one
+  hs.repeats = 1;
+  hs.hysteresis = 0.2;
+  Recorder<3> rec;
+  const RunResult<3> r = run_hybrid<3>(s, es, hs, {&rec});
+  ASSERT_EQ(r.status, "ok") << r.message;
+  // Both switches happened, for the whole cluster, and everything is hard again at the end.
+  EXPECT_EQ(r.hybrid.to_soft, 3u);
+  EXPECT_EQ(r.hybrid.to_hard, 3u);
+  EXPECT_EQ(r.hybrid.soft_at_end, 0u);
+  ASSERT_EQ(rec.switches.size(), 6u);
+  // Momentum: to round-off (pair forces are equal and opposite, switches do not touch velocities).
+  Vec<3> p1 = Vec<3>::Zero();
+  double ke1 = 0.0;
+  for (int i = 0; i < 3; ++i) {
+    p1 += s.mass(i) * r.v[i];
+    ke1 += 0.5 * s.mass(i) * r.v[i].squaredNorm();
+  }
+  EXPECT_LT((p1 - p0).norm(), 1e-14 * p0.norm());
+  // Energy: kinetic + elastic is constant through the soft phase up to the TDM error (second order,
+  // dt = t_c/50), and the kinetic energy after release equals the initial one.
+  double worst = 0.0;
+  for (const auto& smp : rec.samples) worst = std::max(worst, std::abs(smp.kinetic_energy + smp.elastic_energy - ke0));
+  EXPECT_LT(worst, 2e-3 * ke0);
+  EXPECT_NEAR(ke1, ke0, 2e-3 * ke0);
+  // The switch records carry the velocities: at each switch the particle's velocity is unchanged.
+  for (const auto& w : rec.switches) EXPECT_EQ(w.vi_before, w.vi_after);
+}
+
+// ---- dilute gas ------------------------------------------------------------------------------
+
+// e = 0.95 at packing fraction 0.05 without gravity: collisions are rare and binary; the hybrid
+// stays hard and follows EDM.
+TEST(HybridGas, DiluteGasStaysHardAndFollowsEdm) {
+  const int n = kSanitized ? 6 : 10;
+  System<3> s = test::lattice_gas<3>(n, 0.05, 1.0, 0.95, 3);
+  s.materials[0].contact = "hertz";
+  s.materials[0].young = 1e7;  // unit mass, unit diameter: t_c ~ 3e-3 at unit speed
+  s.materials[0].poisson = 0.3;
+  EdmSettings es;
+  es.end_time = kSanitized ? 5.0 : 20.0;
+  const RunResult<3> re = run_edm<3>(s, es, QueueKind::Calendar);
+  const RunResult<3> rh = run_hybrid<3>(s, es, HybridSettings{});
+  ASSERT_EQ(re.status, "ok");
+  ASSERT_EQ(rh.status, "ok") << rh.message;
+  EXPECT_LE(rh.hybrid.to_soft, static_cast<std::uint64_t>(s.size() / 100));
+  // Same physics: the collision counts and the final temperature agree statistically (different
+  // trajectories once any switch happens; identical ones when none does).
+  const double ce = static_cast<double>(re.counts.pair), ch = static_cast<double>(rh.counts.pair);
+  EXPECT_NEAR(ch / ce, 1.0, 0.03);
+  auto temp = [&](const RunResult<3>& r) {
+    double mv2 = 0.0;
+    for (std::size_t i = 0; i < s.size(); ++i) mv2 += s.mass(i) * r.v[i].squaredNorm();
+    return mv2 / (3.0 * s.size());
+  };
+  EXPECT_NEAR(temp(rh) / temp(re), 1.0, 0.03);
+}
+
+// ---- settling bed ----------------------------------------------------------------------------
+
+// n glass grains (d = 1 cm; 2D: +-10 % radii) at random in a box with floor and side walls, at rest,
+// e = 0.5, frictionless: they fall and settle into a bed.
+template <int D>
+System<D> settling_box(int n, double width_d, std::uint64_t seed) {
+  System<D> s;
+  const double d = 0.01, R = d / 2;
+  const double W = width_d * d;
+  s.lower = Vec<D>::Zero();
+  s.upper = Vec<D>::Constant(W);
+  // Height: room for the cloud at packing fraction ~0.15 above a bed.
+  const double solid = n * ball_volume<D>(R);
+  const double area = std::pow(W, D - 1);
+  const double H = solid / ((D == 2 ? 0.45 : 0.15) * area) + 4 * d;
+  s.upper[D - 1] = H + 2 * d;
+  s.gravity = Vec<D>::Zero();
+  s.gravity[D - 1] = -kG;
+  Material m;
+  m.name = "glass";
+  m.density = 2500.0;
+  m.restitution = Restitution::constant(0.5);
+  // 3D: Hertz (E = 1e7 Pa, overlaps ~1 % of d). 2D: a linear spring-dashpot (disks have the mass
+  // of a unit-thickness slab, 2500 pi R^2 = 0.2 kg/m; k = 2e7 N/m gives overlaps of a few % of d),
+  // whose damping does not vanish at small overlaps: a 2D Hertz bed rings for seconds.
+  if (D == 3) {
+    m.contact = "hertz";
+    m.young = 1e7;
+    m.poisson = 0.3;
+  } else {
+    m.contact = "linear";
+    m.stiffness = 2e7;
+  }
+  s.materials.push_back(m);
+  for (int k = 0; k < D; ++k) {
+    Wall<D> lo;
+    lo.name = "lo" + std::to_string(k);
+    lo.point = Vec<D>::Zero();
+    lo.normal = Vec<D>::Zero();
+    lo.normal[k] = 1.0;
+    s.walls.push_back(lo);
+    if (k == D - 1) break;  // open top
+    Wall<D> hi = lo;
+    hi.name = "hi" + std::to_string(k);
+    hi.point[k] = W;
+    hi.normal[k] = -1.0;
+    s.walls.push_back(hi);
+  }
+  std::mt19937_64 rng(seed);
+  std::uniform_real_distribution<double> u(0.0, 1.0);
+  while (static_cast<int>(s.x.size()) < n) {
+    Vec<D> x;
+    for (int k = 0; k < D - 1; ++k) x[k] = R + (W - 2 * R) * u(rng);
+    x[D - 1] = 3 * d + (H - 3 * d) * u(rng);
+    // 2D: radii spread by +-10 % (monodisperse disks crystallise, and the packing fraction of
+    // a crystal depends on its defects, not on the dynamics).
+    const double r = D == 2 ? R * (0.9 + 0.2 * u(rng)) : R;
+    bool ok = true;
+    for (std::size_t k = 0; k < s.x.size() && ok; ++k) {
+      const double sig = (r + s.radius[k]) * 1.0001;
+      ok = (x - s.x[k]).squaredNorm() > sig * sig;
+    }
+    if (!ok) continue;
+    s.x.push_back(x);
+    s.v.push_back(Vec<D>::Zero());
+    s.radius.push_back(r);
+    s.material.push_back(0);
+  }
+  return s;
+}
+
+// Bed height: mean top (z + R) of the highest tenth of the grains; packing fraction: the solid
+// volume of the grains whose centres lie below 0.8 of that height, over that slab's volume.
+template <int D>
+std::pair<double, double> bed_measure(const RunResult<D>& r, double W) {
+  std::vector<double> top;
+  for (std::size_t i = 0; i < r.x.size(); ++i) top.push_back(r.x[i][D - 1] + r.radius[i]);
+  std::sort(top.begin(), top.end(), std::greater<>());
+  const std::size_t k = std::max<std::size_t>(1, top.size() / 10);
+  const double H = std::accumulate(top.begin(), top.begin() + k, 0.0) / k;
+  double solid = 0.0;
+  for (std::size_t i = 0; i < r.x.size(); ++i) {
+    const double z = r.x[i][D - 1];
+    if (z < 0.8 * H) solid += ball_volume<D>(r.radius[i]);
+  }
+  return {H, solid / (0.8 * H * std::pow(W, D - 1))};
+}
+
+template <int D>
+void check_settling_bed(int n, double width_d, double end_time) {
+  const System<D> s = settling_box<D>(n, width_d, 11);
+  const double W = width_d * 0.01;
+  EdmSettings es;
+  es.end_time = end_time;
+  // Pure EDM: inelastic collapse in the bed.
+  const RunResult<D> re = run_edm<D>(s, es, QueueKind::Calendar);
+  EXPECT_EQ(re.status, "collapse");
+  const RunResult<D> rh = run_hybrid<D>(s, es, HybridSettings{});
+  ASSERT_EQ(rh.status, "ok") << rh.message;
+  TdmSettings ts;
+  ts.end_time = end_time;
+  ts.threads = 1;
+  const RunResult<D> rt = run_tdm<D>(s, ts);
+  ASSERT_EQ(rt.status, "ok") << rt.message;
+  const auto [Hh, ph] = bed_measure<D>(rh, W);
+  const auto [Ht, pt] = bed_measure<D>(rt, W);
+  ::testing::Test::RecordProperty("wall_seconds_edm_hybrid_tdm",
+                 fmt::format("{:.3g} {:.3g} {:.3g}", re.wall_seconds, rh.wall_seconds, rt.wall_seconds));
+  ::testing::Test::RecordProperty("soft_dt", fmt::format("{:.3g}", rt.soft.dt));
+  ::testing::Test::RecordProperty("bed_height_hybrid_tdm", fmt::format("{:.5g} {:.5g}", Hh, Ht));
+  ::testing::Test::RecordProperty("packing_hybrid_tdm", fmt::format("{:.5g} {:.5g}", ph, pt));
+  EXPECT_NEAR(Hh / Ht, 1.0, 0.01) << "hybrid " << Hh << " tdm " << Ht;
+  EXPECT_NEAR(ph / pt, 1.0, 0.01) << "hybrid " << ph << " tdm " << pt;
+  // Both at rest: the kinetic energy is a tiny fraction of the potential energy released.
+  double ke = 0.0;
+  for (std::size_t i = 0; i < s.size(); ++i) ke += 0.5 * s.mass(i) * rh.v[i].squaredNorm();
+  double released = 0.0;
+  for (std::size_t i = 0; i < s.size(); ++i) released += s.mass(i) * kG * (s.x[i][D - 1] - rh.x[i][D - 1]);
+  EXPECT_LT(ke, 1e-3 * released) << "kinetic " << ke << " released " << released;
+  EXPECT_GT(rh.hybrid.to_soft, s.size() / 2);
+}
+
+TEST(HybridBed, SettlesLikeTdm2D) { check_settling_bed<2>(kSanitized ? 200 : 1000, 30.0, 0.8); }
+TEST(HybridBed, SettlesLikeTdm3D) { check_settling_bed<3>(kSanitized ? 200 : 1000, 8.0, 0.6); }
+
+}  // namespace
+}  // namespace matep

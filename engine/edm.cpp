@@ -8,7 +8,8 @@
 #include <cmath>
 #include <optional>
 #include <stdexcept>
-#include <unordered_map>
+#include <map>
+#include <tuple>
 
 #include "contact/hard.hpp"
 #include "contact/predict.hpp"
@@ -81,7 +82,7 @@ class EdmEngine {
     for (const auto& wall : sys.walls) moving_walls_ = moving_walls_ || wall.oscillating();
     // Hybrid: cells at least one largest diameter plus the capture skin wide, so that the cells
     // around a particle hold every particle within the skin of it.
-    build_cells(2.0 * rmax + (Hybrid ? skin_ : 0.0));
+    build_cells(2.0 * rmax + (Hybrid ? lskin_ : 0.0));
     if constexpr (Hybrid) hybrid_arrays();
   }
 
@@ -102,7 +103,7 @@ class EdmEngine {
     if constexpr (Hybrid) hybrid_start();
     emit_sample(0.0, /*interval=*/0.0);
     for (int i = 0; i < N_; ++i)
-      if (!Hybrid || cold_[i].mode == kHard) predict(i, 0.0);
+      if (!Hybrid || mode_[i] == kHard) predict(i, 0.0);
     if (set_.thermo_interval > 0.0 && set_.thermo_interval < set_.end_time * (1.0 - 1e-12))
       queue_->set(sample_id, set_.thermo_interval);
     queue_->set(end_id, set_.end_time);
@@ -172,7 +173,7 @@ class EdmEngine {
     const double t_end = status_.empty() ? set_.end_time : now_;
     // Soft particles stay at their last substep (less than one substep before t_end).
     for (int i = 0; i < N_; ++i)
-      if (!Hybrid || cold_[i].mode == kHard || cold_[i].mode == kPending) advance(i, t_end);
+      if (!Hybrid || mode_[i] == kHard || mode_[i] == kPending) advance(i, t_end);
     if (t_end > last_sample_time || counts_.samples == 1) emit_sample(t_end, t_end - last_sample_time);
     if (snapshots && t_end > last_snapshot_time) emit_snapshot(t_end);
 
@@ -349,7 +350,7 @@ class EdmEngine {
   // ---- motion ---------------------------------------------------------------------------------
   void advance(int i, double t) {
     if constexpr (Hybrid) {
-      if (cold_[i].mode == kSoft || cold_[i].mode == kAsleep) return;  // moved by the substeps
+      if (mode_[i] == kSoft || mode_[i] == kAsleep) return;  // moved by the substeps
     }
     Hot<D>& h = hot_[i];
     const double dt = t - h.t;
@@ -409,8 +410,8 @@ class EdmEngine {
         i,
         [&](int j, const Vec<D>& shift) {
           if constexpr (Hybrid) {
-            if (cold_[j].mode != kHard) {
-              if (cold_[j].mode != kPending) mark_interface(i);
+            if (mode_[j] != kHard) {
+              if (mode_[j] != kPending) mark_interface(i);
               return;
             }
           }
@@ -520,7 +521,7 @@ class EdmEngine {
 
   void handle(int i, double t) {
     if constexpr (Hybrid) {
-      if (cold_[i].mode != kHard) return;  // an event left from before a switch (never scheduled)
+      if (mode_[i] != kHard) return;  // an event left from before a switch (never scheduled)
     }
     if (cold_[i].cross_t <= cold_[i].ev_t) {
       advance(i, t);
@@ -695,7 +696,7 @@ class EdmEngine {
     snap.w = sys_.w;
     if constexpr (Hybrid) {
       snap.mode.resize(N_);
-      for (int i = 0; i < N_; ++i) snap.mode[i] = cold_[i].mode == kPending ? std::uint8_t{kHard} : cold_[i].mode;
+      for (int i = 0; i < N_; ++i) snap.mode[i] = mode_[i] == kPending ? std::uint8_t{kHard} : mode_[i];
       snap.cluster = soft_clusters();
     }
     for (auto* o : snapshot_observers_) o->on_snapshot(snap);
@@ -731,6 +732,7 @@ class EdmEngine {
     s.collisions = counts_.collisions();
     if constexpr (Hybrid) {
       s.elastic_energy = soft_elastic_energy();
+      s.soft = soft_.size() + asleep_;
       s.collisions += hstats_soft_begun_;
     }
     // P V = N T + (1/(d dt)) sum_collisions r_ij . dp_i  (REFERENCES 2.3; Smallenburg's EDMD).
@@ -778,21 +780,21 @@ class EdmEngine {
   // Whether i moves ballistically between its events (hard or pending), i.e. its stored state may
   // be extrapolated in time; a soft or sleeping particle is at its last substep.
   bool moved_by_events(int i) const {
-    if constexpr (Hybrid) return cold_[i].mode == kHard || cold_[i].mode == kPending;
+    if constexpr (Hybrid) return mode_[i] == kHard || mode_[i] == kPending;
     return true;
   }
 
   struct PairEntry {
     int i, j;
+    std::uint32_t c;  // the pair's contact constants: ctab_[c]
     std::uint8_t touch;
-    Vec<D> xi;      // tangential spring
-    SoftContact c;  // the pair's contact constants
+    Vec<D> xi;        // tangential spring
   };
   struct WallEntry {
     int i, w;
+    std::uint32_t c;
     std::uint8_t touch;
     Vec<D> xi;
-    SoftContact c;
   };
 
   void hybrid_setup(const HybridSettings& hs) {
@@ -811,13 +813,30 @@ class EdmEngine {
     // The skin must cover the largest relative approach in one substep (two particles at the
     // largest expected impact speed each): no contact can begin between two capture checks.
     skin_ = std::max(skin_, 4.0 * plan_.impact_speed * h_);
+    // The Verlet list of the soft set takes a wider skin than the capture (fewer rebuilds while
+    // grains land at speed); the cells are as wide as its cut-off.
+    lskin_ = std::max(skin_, kListSkin * dmin);
     kstab_ = hs.stability;
     hyst_ = hs.hysteresis > 0.0 ? hs.hysteresis : 10.0 * kstab_ * plan_.contact_time;
     rest_time_ = hs.rest_time > 0.0 ? hs.rest_time : 20.0 * plan_.contact_time;
     cost_interval_ = hs.cost_ratio * h_;
     repeats_ = std::max(1, hs.repeats);
+    sleeping_ = hs.rest_speed > 0.0;
+    rest_speed2_ = hs.rest_speed * hs.rest_speed;
+    // Clusters are checked four times per rest time.
+    sleep_every_ = std::max<std::uint64_t>(1, static_cast<std::uint64_t>(0.25 * rest_time_ / h_));
     substep_id_ = N_ + 3;
     if (rot_ && sys_.w.empty()) sys_.w.assign(N_, Spin<D>::Zero());
+    uniform_ = N_ > 0;
+    for (int i = 1; i < N_ && uniform_; ++i)
+      uniform_ = sys_.material[i] == sys_.material[0] && sys_.radius[i] == sys_.radius[0];
+    if (uniform_) {
+      const int m = sys_.material[0];
+      const double R = sys_.radius[0], M = sys_.mass(0);
+      ctab_.push_back(pair_contact(plan_, m, R, M, m, R, M));
+      for (std::size_t w = 0; w < sys_.walls.size(); ++w)
+        ctab_.push_back(wall_contact(plan_, static_cast<int>(w), m, R, M));
+    }
     minv_.resize(N_);
     iinv_.resize(N_);
     for (int i = 0; i < N_; ++i) {
@@ -838,13 +857,16 @@ class EdmEngine {
       tq_.assign(N_, Spin<D>::Zero());
     }
     last_contact_.assign(N_, 0.0);
-    quiet_since_.assign(N_, 0.0);
+    quiet_checks_.assign(N_, 0);
     ema_.assign(N_, kNever);
     slot_.assign(N_, -1);
     touching_.assign(N_, 0);
     near_.assign(N_, 0);
     recent_.assign(N_, {-1, -1});
     rapid_.assign(N_, 0);
+    mode_.assign(N_, kHard);
+    sleep_id_.assign(N_, -1);
+    iface_flag_.assign(N_, 0);
     recent_t_.assign(N_, {-kNever, -kNever});
     wall_now_.resize(sys_.walls.size());
   }
@@ -852,15 +874,16 @@ class EdmEngine {
   double inv_mass(int i) const { return minv_[i]; }
 
   void mark_interface(int i) {
-    if (cold_[i].iface) return;
-    cold_[i].iface = 1;
+    if (iface_flag_[i]) return;
+    iface_flag_[i] = 1;
     iface_.push_back(i);
+    start_clock(now_);  // substeps check it against the soft set (they may have stopped: all asleep)
   }
 
   // Marks the hard neighbours of i as interface particles (i has just become soft or moved cell).
   void mark_neighbours(int i) {
     for_neighbours(i, [&](int j, const Vec<D>&) {
-      if (cold_[j].mode == kHard) mark_interface(j);
+      if (mode_[j] == kHard) mark_interface(j);
     });
   }
 
@@ -961,8 +984,8 @@ class EdmEngine {
   // Hard i stops flying: it joins the soft set at the next substep, together with the particles it
   // collided with within the stability window (its cluster), recursively.
   void make_pending(int i, double t, std::uint8_t reason) {
-    if (cold_[i].mode != kHard) return;
-    cold_[i].mode = kPending;
+    if (mode_[i] != kHard) return;
+    mode_[i] = kPending;
     pending_reason_.push_back(reason);
     pending_.push_back(i);
     queue_->erase(i);
@@ -971,7 +994,7 @@ class EdmEngine {
     // The cluster: partners of collisions within the stability window k t_c (t_c of the plan).
     for (int k = 0; k < 2; ++k) {
       const int j = recent_[i][k];
-      if (j < 0 || cold_[j].mode != kHard) continue;
+      if (j < 0 || mode_[j] != kHard) continue;
       if (t - recent_t_[i][k] < kstab_ * plan_.contact_time) make_pending(j, t, kByCluster);
     }
   }
@@ -1002,12 +1025,12 @@ class EdmEngine {
   // i (hard or pending, flying ballistically) joins the soft set at substep time t.
   void join(int i, double t, std::uint8_t reason) {
     advance(i, t);
-    if (cold_[i].mode == kHard) {
+    if (mode_[i] == kHard) {
       queue_->erase(i);
       ++cold_[i].counter;
     }
-    cold_[i].mode = kSoft;
-    cold_[i].iface = 0;
+    mode_[i] = kSoft;
+    iface_flag_[i] = 0;
     slot_[i] = static_cast<int>(soft_.size());
     soft_.push_back(i);
     // Ballistic until now: v(t - h/2) = v(t) - h/2 g and a(t - h) = g, so that the predicted
@@ -1022,7 +1045,7 @@ class EdmEngine {
       tq_[i].setZero();
     }
     last_contact_[i] = t;
-    quiet_since_[i] = t;
+    quiet_checks_[i] = 0;
     ema_[i] = kNever;
     ++hstats_.to_soft;
     switch (reason) {
@@ -1035,12 +1058,11 @@ class EdmEngine {
     log_switch(i, t, EventKind::ToSoft);
     if (!dirty_) add_entries(i, t);
     mark_neighbours(i);
-    wake_near(i);
   }
 
   // Soft i returns to EDM at substep time t with its full-step velocity and spin.
   void release(int i, double t) {
-    cold_[i].mode = kHard;
+    mode_[i] = kHard;
     const int s = slot_[i];
     soft_[s] = soft_.back();
     slot_[soft_[s]] = s;
@@ -1062,58 +1084,123 @@ class EdmEngine {
     const Vec<D> xi = hot_[i].x;
     const double Ri = hot_[i].R;
     for_neighbours(i, [&](int j, const Vec<D>& shift) {
-      if (cold_[j].mode != kSoft) return;
-      const double cut = Ri + hot_[j].R + skin_;
+      if (mode_[j] == kAsleep) {
+        const double cut = Ri + hot_[j].R + skin_;
+        if ((xi - hot_[j].x - shift).squaredNorm() < cut * cut) wake(sleep_id_[j], t);  // sets dirty_
+        return;
+      }
+      if (mode_[j] != kSoft) return;
+      const double cut = Ri + hot_[j].R + lskin_;
       if ((xi - hot_[j].x - shift).squaredNorm() >= cut * cut) return;
       const int a = std::min(i, j), b = std::max(i, j);
-      pe_.push_back({a, b, 0, Vec<D>::Zero(), pair_contact_of(a, b)});
+      pe_.push_back({a, b, pair_contact_of(a, b), 0, Vec<D>::Zero()});
     });
     for (std::size_t w = 0; w < sys_.walls.size(); ++w) {
       const auto& W = sys_.walls[w];
       const double reach = W.oscillating() ? 2.0 * std::abs(W.amplitude.dot(W.normal)) : 0.0;
-      if ((xi - W.position(t)).dot(W.normal) - Ri < skin_ + reach)
-        we_.push_back({i, static_cast<int>(w), 0, Vec<D>::Zero(),
-                       wall_contact(plan_, static_cast<int>(w), cold_[i].mat, Ri, mass(i))});
+      if ((xi - W.position(t)).dot(W.normal) - Ri < lskin_ + reach)
+        we_.push_back({i, static_cast<int>(w), wall_contact_of(static_cast<int>(w), i), 0, Vec<D>::Zero()});
     }
   }
 
-  SoftContact pair_contact_of(int a, int b) const {
-    return pair_contact(plan_, cold_[a].mat, hot_[a].R, mass(a), cold_[b].mat, hot_[b].R, mass(b));
+  // Index of the contact constants of a pair (a wall) in ctab_, computed once per combination of
+  // materials and radii.
+  std::uint32_t pair_contact_of(int a, int b) {
+    if (uniform_) return 0;
+    return lookup_contact(cold_[a].mat, hot_[a].R, cold_[b].mat, hot_[b].R, -1,
+                          [&] { return pair_contact(plan_, cold_[a].mat, hot_[a].R, mass(a), cold_[b].mat, hot_[b].R, mass(b)); });
+  }
+  std::uint32_t wall_contact_of(int w, int i) {
+    if (uniform_) return 1 + static_cast<std::uint32_t>(w);
+    return lookup_contact(cold_[i].mat, hot_[i].R, -1, 0.0, w,
+                          [&] { return wall_contact(plan_, w, cold_[i].mat, hot_[i].R, mass(i)); });
+  }
+  template <class Make>
+  std::uint32_t lookup_contact(int ma, double Ra, int mb, double Rb, int w, Make&& make) {
+    if (mb >= 0 && (mb < ma || (mb == ma && Rb < Ra))) {
+      std::swap(ma, mb);
+      std::swap(Ra, Rb);
+    }
+    const ContactKey k{ma, mb, w, Ra, Rb};
+    const auto it = ckeys_.find(k);
+    if (it != ckeys_.end()) return it->second;
+    const auto idx = static_cast<std::uint32_t>(ctab_.size());
+    ctab_.push_back(make());
+    ckeys_.emplace(k, idx);
+    return idx;
+  }
+  struct ContactKey {
+    int ma, mb, w;
+    double Ra, Rb;
+    bool operator<(const ContactKey& o) const {
+      return std::tie(ma, mb, w, Ra, Rb) < std::tie(o.ma, o.mb, o.w, o.Ra, o.Rb);
+    }
+  };
+
+  using Springs = std::vector<std::pair<std::uint64_t, Vec<D>>>;
+  static std::uint64_t key(int a, int b) {
+    return (static_cast<std::uint64_t>(a) << 32) | static_cast<std::uint32_t>(b);
+  }
+  static const Vec<D>* find_spring(const Springs& s, std::uint64_t k) {
+    const auto it = std::lower_bound(s.begin(), s.end(), k, [](const auto& a, std::uint64_t b) { return a.first < b; });
+    return it != s.end() && it->first == k ? &it->second : nullptr;
   }
 
   // All entries anew, the springs of touching contacts carried over by particle ids.
-  void rebuild_entries(double t) {
+  [[gnu::flatten]] void rebuild_entries(double t) {
     ++hstats_.rebuilds;
-    std::unordered_map<std::uint64_t, Vec<D>> springs;
-    auto key = [](int a, int b) { return (static_cast<std::uint64_t>(a) << 32) | static_cast<std::uint32_t>(b); };
+    Springs& springs = springs_;
+    Springs& wsprings = wsprings_;
+    springs.clear();
+    wsprings.clear();
     for (const auto& e : pe_)
-      if (e.touch && cold_[e.i].mode == kSoft && cold_[e.j].mode == kSoft) springs[key(e.i, e.j)] = e.xi;
-    std::unordered_map<std::uint64_t, Vec<D>> wsprings;
+      if (e.touch && mode_[e.i] == kSoft && mode_[e.j] == kSoft) springs.push_back({key(e.i, e.j), e.xi});
     for (const auto& e : we_)
-      if (e.touch && cold_[e.i].mode == kSoft) wsprings[key(e.i, e.w)] = e.xi;
+      if (e.touch && mode_[e.i] == kSoft) wsprings.push_back({key(e.i, e.w), e.xi});
     pe_.clear();
     we_.clear();
+    // An awake particle within the skin of a sleeping one wakes its cluster (rest rule); the
+    // woken particles need entries too, so the build starts again.
+    bool woke = false;
+    for (const int i : soft_) {
+      for_neighbours(i, [&](int j, const Vec<D>& shift) {
+        if (mode_[j] != kAsleep) return;
+        const double cut = hot_[i].R + hot_[j].R + skin_;
+        if ((hot_[i].x - hot_[j].x - shift).squaredNorm() < cut * cut) woke |= wake(sleep_id_[j], t);
+      });
+    }
+    if (woke) {  // the woken clusters' entries are back in pe_/we_: keep their springs
+      for (const auto& e : pe_)
+        if (e.touch && mode_[e.i] == kSoft && mode_[e.j] == kSoft) springs.push_back({key(e.i, e.j), e.xi});
+      for (const auto& e : we_)
+        if (e.touch && mode_[e.i] == kSoft) wsprings.push_back({key(e.i, e.w), e.xi});
+      pe_.clear();
+      we_.clear();
+    }
+    auto by_key = [](const auto& a, const auto& b) { return a.first < b.first; };
+    std::sort(springs.begin(), springs.end(), by_key);
+    std::sort(wsprings.begin(), wsprings.end(), by_key);
     for (const int i : soft_) {
       disp_[i].setZero();
       const Vec<D> xi = hot_[i].x;
       const double Ri = hot_[i].R;
       for_neighbours(i, [&](int j, const Vec<D>& shift) {
-        if (j < i || cold_[j].mode != kSoft) return;
-        const double cut = Ri + hot_[j].R + skin_;
+        if (j < i || mode_[j] != kSoft) return;
+        const double cut = Ri + hot_[j].R + lskin_;
         if ((xi - hot_[j].x - shift).squaredNorm() >= cut * cut) return;
-        PairEntry e{i, j, 0, Vec<D>::Zero(), pair_contact_of(i, j)};
-        if (const auto it = springs.find(key(i, j)); it != springs.end()) {
+        PairEntry e{i, j, pair_contact_of(i, j), 0, Vec<D>::Zero()};
+        if (const Vec<D>* x = find_spring(springs, key(i, j))) {
           e.touch = 1;
-          e.xi = it->second;
+          e.xi = *x;
         }
         pe_.push_back(e);
       });
       const std::size_t w0 = we_.size();
       add_walls_only(i, t);
       for (std::size_t k = w0; k < we_.size(); ++k)
-        if (const auto it = wsprings.find(key(i, we_[k].w)); it != wsprings.end()) {
+        if (const Vec<D>* x = find_spring(wsprings, key(i, we_[k].w))) {
           we_[k].touch = 1;
-          we_[k].xi = it->second;
+          we_[k].xi = *x;
         }
     }
     dirty_ = false;
@@ -1124,9 +1211,8 @@ class EdmEngine {
     for (std::size_t w = 0; w < sys_.walls.size(); ++w) {
       const auto& W = sys_.walls[w];
       const double reach = W.oscillating() ? 2.0 * std::abs(W.amplitude.dot(W.normal)) : 0.0;
-      if ((xi - W.position(t)).dot(W.normal) - Ri < skin_ + reach)
-        we_.push_back({i, static_cast<int>(w), 0, Vec<D>::Zero(),
-                       wall_contact(plan_, static_cast<int>(w), cold_[i].mat, Ri, mass(i))});
+      if ((xi - W.position(t)).dot(W.normal) - Ri < lskin_ + reach)
+        we_.push_back({i, static_cast<int>(w), wall_contact_of(static_cast<int>(w), i), 0, Vec<D>::Zero()});
     }
   }
 
@@ -1173,7 +1259,7 @@ class EdmEngine {
       hot_[i].x += dx;
       hot_[i].t = t;
       disp_[i] += dx;
-      if (disp_[i].squaredNorm() > 0.25 * skin_ * skin_) dirty_ = true;
+      if (disp_[i].squaredNorm() > 0.25 * lskin_ * lskin_) dirty_ = true;
       if (rot_) {
         alpha_[i] = tq_[i] * iinv_[i];
         tq_[i].setZero();
@@ -1185,7 +1271,7 @@ class EdmEngine {
     if (!status_.empty()) return;
     // 2. Joins: pending particles, then hard particles within the skin of a soft one.
     for (std::size_t k = 0; k < pending_.size(); ++k)
-      if (cold_[pending_[k]].mode == kPending) join(pending_[k], t, pending_reason_[k]);
+      if (mode_[pending_[k]] == kPending) join(pending_[k], t, pending_reason_[k]);
     pending_.clear();
     pending_reason_.clear();
     capture(t);
@@ -1207,6 +1293,10 @@ class EdmEngine {
       }
       ++s;
     }
+    if (sleeping_ && ++since_sleep_check_ >= sleep_every_) {
+      since_sleep_check_ = 0;
+      sleep_quiet_clusters();
+    }
     hstats_.max_soft = std::max<std::uint64_t>(hstats_.max_soft, soft_.size() + asleep_);
     // 6. The next substep while anything is soft, pending or next to a soft particle.
     if (!soft_.empty() || !pending_.empty() || !iface_.empty()) {
@@ -1223,8 +1313,8 @@ class EdmEngine {
     const std::size_t n = iface_.size();
     for (std::size_t k = 0; k < n; ++k) {
       const int i = iface_[k];
-      if (cold_[i].mode != kHard) {
-        cold_[i].iface = 0;
+      if (mode_[i] != kHard) {
+        iface_flag_[i] = 0;
         continue;
       }
       const Hot<D>& hi = hot_[i];
@@ -1232,19 +1322,22 @@ class EdmEngine {
       const Vec<D> xi = hi.x + hi.v * dt + (0.5 * dt * dt) * g_;
       bool any = false, in = false;
       for_neighbours(i, [&](int j, const Vec<D>& shift) {
-        const std::uint8_t m = cold_[j].mode;
+        const std::uint8_t m = mode_[j];
         if (m != kSoft && m != kAsleep) return;
         any = true;
         const double cut = hi.R + hot_[j].R + skin_;
-        if ((xi - hot_[j].x - shift).squaredNorm() < cut * cut) in = true;
+        if ((xi - hot_[j].x - shift).squaredNorm() < cut * cut) {
+          in = true;
+          if (m == kAsleep) wake(sleep_id_[j], t);
+        }
       });
       if (in) {
-        cold_[i].iface = 0;
+        iface_flag_[i] = 0;
         join(i, t, kByCapture);
       } else if (any) {
         iface_[keep++] = i;
       } else {
-        cold_[i].iface = 0;
+        iface_flag_[i] = 0;
       }
     }
     // Particles marked during the joins above were appended after n.
@@ -1257,8 +1350,28 @@ class EdmEngine {
   // the spring grown by h times the half-step contact velocity, the first-step weight of a contact
   // that begins inside the step (onset_fraction, at_onset there).
   void soft_forces(double t) {
+    for (std::size_t w = 0; w < sys_.walls.size(); ++w) {
+      const auto& W = sys_.walls[w];
+      wall_now_[w] = {W.position(t), W.velocity(t), W.velocity(t - hdt_)};
+    }
+    switch (plan_.law) {
+      case NormalLaw::Linear:
+        rot_ ? soft_forces_law<NormalLaw::Linear, true>() : soft_forces_law<NormalLaw::Linear, false>();
+        break;
+      case NormalLaw::Hertz:
+        rot_ ? soft_forces_law<NormalLaw::Hertz, true>() : soft_forces_law<NormalLaw::Hertz, false>();
+        break;
+      case NormalLaw::Viscoelastic:
+        rot_ ? soft_forces_law<NormalLaw::Viscoelastic, true>() : soft_forces_law<NormalLaw::Viscoelastic, false>();
+        break;
+    }
+  }
+
+  template <NormalLaw Law, bool Rot>
+  [[gnu::flatten]] void soft_forces_law() {
     const double h = h_, hdt = hdt_;
     double virial = 0.0;
+    const SoftContact* const C = ctab_.data();
     for (auto& e : pe_) {
       const int i = e.i, j = e.j;
       Vec<D> dx = hot_[i].x - hot_[j].x;
@@ -1277,22 +1390,35 @@ class EdmEngine {
       const double r = std::sqrt(r2);
       const Vec<D> n = dx * (1.0 / r);
       const double delta = Rs - r;
-      SoftContact c = e.c;
+      const SoftContact* cp = &C[e.c];
+      SoftContact local;
       double onset = -1.0;
       if (!e.touch) {
         e.touch = 1;
         ++hstats_soft_begun_;
         onset = hyb_onset_fraction(delta, -(vh_[i] - vh_[j]).dot(n), h);
-        if (onset >= 0.0 && c.normal == NormalLaw::Linear) {
-          c.gn *= onset + 0.5;
-          c.gt *= onset + 0.5;
+        if (onset >= 0.0 && Law == NormalLaw::Linear) {
+          local = *cp;
+          local.gn *= onset + 0.5;
+          local.gt *= onset + 0.5;
+          cp = &local;
         }
       }
+      const SoftContact& c = *cp;
       touching_[i] = touching_[j] = 1;
       const Vec<D> vpi = vh_[i] + hdt * acc_[i], vpj = vh_[j] + hdt * acc_[j];
       Vec<D> F;
-      if (!rot_) {
-        F = normal_force(c, delta, -(vpi - vpj).dot(n)) * n;
+      if constexpr (!Rot) {
+        const double vn = (vpi - vpj).dot(n);
+        double fn;
+        if constexpr (Law == NormalLaw::Linear) {
+          fn = c.kn * delta - c.gn * vn;
+        } else {
+          const double sq = std::sqrt(delta);
+          fn = c.kn * delta * sq - c.gn * (Law == NormalLaw::Hertz ? std::sqrt(sq) : sq) * vn;
+        }
+        if (c.clip && fn < 0.0) fn = 0.0;
+        F = fn * n;
       } else {
         const double li = pair_lever_arm(hot_[i].R, delta), lj = pair_lever_arm(hot_[j].R, delta);
         ContactKinematics<D> k;
@@ -1302,7 +1428,7 @@ class EdmEngine {
         k.dxi = h * contact_velocity<D>(vh_[i], wh_[i], li, vh_[j], wh_[j], lj, n);
         if (onset >= 0.0) k.dxi *= onset;
         ContactHistory<D> hist{e.xi};
-        const ContactForce<D> cf = soft_contact_force<D>(c, k, hist);
+        const ContactForce<D> cf = soft_contact_force_law<D, Law>(c, k, hist);
         e.xi = hist.xi;
         F = cf.force;
         const Spin<D> m = lever_moment<D>(n, cf.tangential);
@@ -1312,10 +1438,6 @@ class EdmEngine {
       f_[i] += F;
       f_[j] -= F;
       virial += F.dot(dx);
-    }
-    for (std::size_t w = 0; w < sys_.walls.size(); ++w) {
-      const auto& W = sys_.walls[w];
-      wall_now_[w] = {W.position(t), W.velocity(t), W.velocity(t - hdt)};
     }
     for (auto& e : we_) {
       const int i = e.i;
@@ -1330,20 +1452,20 @@ class EdmEngine {
         }
         continue;
       }
-      SoftContact c = e.c;
+      SoftContact c = C[e.c];
       double onset = -1.0;
       if (!e.touch) {
         e.touch = 1;
         ++hstats_soft_begun_;
         onset = hyb_onset_fraction(delta, -(vh_[i] - now.uh).dot(n), h);
-        if (onset >= 0.0 && c.normal == NormalLaw::Linear) {
+        if (onset >= 0.0 && Law == NormalLaw::Linear) {
           c.gn *= onset + 0.5;
           c.gt *= onset + 0.5;
         }
       }
       touching_[i] = 1;
       const Vec<D> vi = vh_[i] + hdt * acc_[i] - now.u;
-      if (!rot_) {
+      if constexpr (!Rot) {
         f_[i] += normal_force(c, delta, -vi.dot(n)) * n;
       } else {
         const double li = wall_lever_arm(hot_[i].R, delta);
@@ -1354,7 +1476,7 @@ class EdmEngine {
         k.dxi = h * (vh_[i] - now.uh - spin_cross<D>(li * wh_[i], n));
         if (onset >= 0.0) k.dxi *= onset;
         ContactHistory<D> hist{e.xi};
-        const ContactForce<D> cf = soft_contact_force<D>(c, k, hist);
+        const ContactForce<D> cf = soft_contact_force_law<D, Law>(c, k, hist);
         e.xi = hist.xi;
         f_[i] += cf.force;
         tq_[i] += contact_torque<D>(n, cf.tangential, li);
@@ -1383,18 +1505,20 @@ class EdmEngine {
       }
       return u + 0.5 * kt * xi.squaredNorm();
     };
-    for (const auto& e : pe_) {
+    for (const auto* list : {&pe_, &pe_sleep_})
+    for (const auto& e : *list) {
       if (!e.touch) continue;
       Vec<D> dx = hot_[e.i].x - hot_[e.j].x;
       min_image(dx);
       const double delta = hot_[e.i].R + hot_[e.j].R - dx.norm();
-      if (delta > 0.0) el += stored(e.c, delta, e.xi);
+      if (delta > 0.0) el += stored(ctab_[e.c], delta, e.xi);
     }
-    for (const auto& e : we_) {
+    for (const auto* list : {&we_, &we_sleep_})
+    for (const auto& e : *list) {
       if (!e.touch) continue;
       const auto& W = sys_.walls[e.w];
       const double delta = hot_[e.i].R - (hot_[e.i].x - W.position(hot_[e.i].t)).dot(W.normal);
-      if (delta > 0.0) el += stored(e.c, delta, e.xi);
+      if (delta > 0.0) el += stored(ctab_[e.c], delta, e.xi);
     }
     return el;
   }
@@ -1407,15 +1531,16 @@ class EdmEngine {
       while (parent[a] != a) a = parent[a] = parent[parent[a]];
       return a;
     };
-    for (const auto& e : pe_)
-      if (e.touch) {
-        const int a = find(e.i), b = find(e.j);
-        if (a != b) parent[std::max(a, b)] = std::min(a, b);
-      }
+    for (const auto* list : {&pe_, &pe_sleep_})
+      for (const auto& e : *list)
+        if (e.touch) {
+          const int a = find(e.i), b = find(e.j);
+          if (a != b) parent[std::max(a, b)] = std::min(a, b);
+        }
     std::vector<std::int32_t> id(N_, -1), label(N_, -1);
     std::int32_t next = 0;
     for (int i = 0; i < N_; ++i) {
-      if (cold_[i].mode != kSoft && cold_[i].mode != kAsleep) continue;
+      if (mode_[i] != kSoft && mode_[i] != kAsleep) continue;
       const int r = find(i);
       if (label[r] < 0) label[r] = next++;
       id[i] = label[r];
@@ -1435,7 +1560,7 @@ class EdmEngine {
           over = over || (hot_[i].x - hot_[j].x - shift).squaredNorm() < s * s;
         });
       if (over) {
-        cold_[i].mode = kPending;
+        mode_[i] = kPending;
         pending_.push_back(i);
         pending_reason_.push_back(kByOverlap);
       }
@@ -1443,7 +1568,155 @@ class EdmEngine {
     if (!pending_.empty()) start_clock(0.0);
   }
 
-  void wake_near(int) {}
+  // ---- rest rule: sleeping clusters ----
+
+  // Puts to sleep every cluster of awake soft particles (connected by touching contacts) that has
+  // been quiet at the last four checks (a quarter rest_time apart): its rms speed (including the
+  // surface speed of spins, R w) below rest_speed and no member faster than 10 rest_speed; that
+  // touches no oscillating wall; and that has no awake particle of another cluster within the
+  // skin.
+  void sleep_quiet_clusters() {
+    const int n = static_cast<int>(soft_.size());
+    if (n == 0) return;
+    std::vector<int> parent(n);
+    for (int k = 0; k < n; ++k) parent[k] = k;
+    auto find = [&](int a) {
+      while (parent[a] != a) a = parent[a] = parent[parent[a]];
+      return a;
+    };
+    for (const auto& e : pe_)
+      if (e.touch) {
+        const int a = find(slot_[e.i]), b = find(slot_[e.j]);
+        if (a != b) parent[std::max(a, b)] = std::min(a, b);
+      }
+    std::vector<double> v2(n, 0.0), count(n, 0.0);
+    std::vector<std::uint8_t> ok(n, 1);
+    for (int k = 0; k < n; ++k) {
+      const int i = soft_[k], r = find(k);
+      double s2 = hot_[i].v.squaredNorm();
+      if (rot_) s2 += sys_.w[i].squaredNorm() * hot_[i].R * hot_[i].R;
+      v2[r] += s2;
+      count[r] += 1.0;
+      if (s2 > 100.0 * rest_speed2_) ok[r] = 0;
+    }
+    for (int k = 0; k < n; ++k)
+      if (find(k) == k && v2[k] > rest_speed2_ * count[k]) ok[k] = 0;
+    // Quiet checks in a row, per particle (clusters change between checks).
+    for (int k = 0; k < n; ++k) {
+      const int i = soft_[k];
+      quiet_checks_[i] = ok[find(k)] ? quiet_checks_[i] + 1 : 0;
+    }
+    for (int k = 0; k < n; ++k)
+      if (quiet_checks_[soft_[k]] < 4) ok[find(k)] = 0;
+    for (const auto& e : we_)
+      if (e.touch && sys_.walls[e.w].oscillating()) ok[find(slot_[e.i])] = 0;
+    // A near (within the skin, not touching) pair of different clusters: both stay awake unless
+    // both may sleep.
+    for (const auto& e : pe_) {
+      if (e.touch) continue;
+      const int a = find(slot_[e.i]), b = find(slot_[e.j]);
+      if (a == b || (ok[a] && ok[b])) continue;
+      Vec<D> dx = hot_[e.i].x - hot_[e.j].x;
+      min_image(dx);
+      const double cut = hot_[e.i].R + hot_[e.j].R + skin_;
+      if (dx.squaredNorm() < cut * cut) ok[a] = ok[b] = 0;
+    }
+    std::vector<int> cid(n, -1);
+    bool any = false;
+    for (int k = 0; k < n; ++k) {
+      const int r = find(k);
+      if (!ok[r]) continue;
+      if (cid[r] < 0) {
+        cid[r] = static_cast<int>(sleepers_.size());
+        sleepers_.emplace_back();
+      }
+      const int i = soft_[k];
+      sleepers_[cid[r]].push_back(i);
+      any = true;
+    }
+    if (!any) return;
+    for (int k = 0; k < n; ++k) {
+      const int r = find(k);
+      if (!ok[r]) continue;
+      const int i = soft_[k];
+      mode_[i] = kAsleep;
+      sleep_id_[i] = cid[r];
+      hot_[i].v.setZero();
+      if (rot_) sys_.w[i].setZero();
+      ++asleep_;
+      ++hstats_.slept;
+    }
+    // The soft list without the sleepers; their entries set aside with their springs.
+    std::size_t keep = 0;
+    for (std::size_t k = 0; k < soft_.size(); ++k)
+      if (mode_[soft_[k]] == kSoft) {
+        slot_[soft_[k]] = static_cast<int>(keep);
+        soft_[keep++] = soft_[k];
+      } else {
+        slot_[soft_[k]] = -1;
+      }
+    soft_.resize(keep);
+    std::size_t kp = 0;
+    for (const auto& e : pe_) {
+      if (mode_[e.i] == kAsleep && mode_[e.j] == kAsleep) {
+        if (e.touch) pe_sleep_.push_back(e);
+      } else if (mode_[e.i] == kSoft && mode_[e.j] == kSoft) {
+        pe_[kp++] = e;
+      }
+    }
+    pe_.resize(kp);
+    std::size_t kw = 0;
+    for (const auto& e : we_) {
+      if (mode_[e.i] == kAsleep) {
+        if (e.touch) we_sleep_.push_back(e);
+      } else {
+        we_[kw++] = e;
+      }
+    }
+    we_.resize(kw);
+  }
+
+  // Wakes sleeping cluster c at substep time t: its particles rejoin the soft set at rest (v = 0,
+  // a = 0: they slept in equilibrium) with their contacts and springs. Returns whether it slept.
+  bool wake(int c, double t) {
+    if (c < 0 || sleepers_[c].empty()) return false;
+    for (const int i : sleepers_[c]) {
+      mode_[i] = kSoft;
+      sleep_id_[i] = -1;
+      slot_[i] = static_cast<int>(soft_.size());
+      soft_.push_back(i);
+      vh_[i].setZero();
+      acc_[i].setZero();
+      f_[i].setZero();
+      disp_[i].setZero();
+      if (rot_) {
+        wh_[i].setZero();
+        alpha_[i].setZero();
+        tq_[i].setZero();
+      }
+      hot_[i].t = t;
+      quiet_checks_[i] = 0;
+      last_contact_[i] = t;
+      --asleep_;
+      ++hstats_.woken;
+    }
+    sleepers_[c].clear();
+    std::size_t k = 0;
+    for (const auto& e : pe_sleep_) {
+      if (mode_[e.i] == kSoft) pe_.push_back(e);  // both ends belong to the woken cluster
+      else pe_sleep_[k++] = e;
+    }
+    pe_sleep_.resize(k);
+    k = 0;
+    for (const auto& e : we_sleep_) {
+      if (mode_[e.i] == kSoft) we_.push_back(e);
+      else we_sleep_[k++] = e;
+    }
+    we_sleep_.resize(k);
+    dirty_ = true;
+    start_clock(t);
+    return true;
+  }
 
   void hybrid_result(RunResult<D>& res) {
     res.method = "hybrid";
@@ -1457,7 +1730,7 @@ class EdmEngine {
     s.soft_at_end = soft_.size() + asleep_;
     res.hybrid = s;
     res.mode.resize(N_);
-    for (int i = 0; i < N_; ++i) res.mode[i] = cold_[i].mode == kPending ? std::uint8_t{kHard} : cold_[i].mode;
+    for (int i = 0; i < N_; ++i) res.mode[i] = mode_[i] == kPending ? std::uint8_t{kHard} : mode_[i];
     SoftStats& t = res.soft;
     t.steps = hstats_.substeps;
     t.dt = h_;
@@ -1470,12 +1743,15 @@ class EdmEngine {
     t.rebuilds = hstats_.rebuilds;
     for (const auto& e : pe_) t.contacts += e.touch;
     for (const auto& e : we_) t.contacts += e.touch;
+    t.contacts += pe_sleep_.size() + we_sleep_.size();
     t.threads = 1;
   }
 
   // Hybrid state.
   HybridSettings hset_;
   SoftPlan plan_;
+  static constexpr double kListSkin = 0.25;  // soft neighbour-list skin, fraction of the smallest diameter
+  double lskin_ = 0.0;
   double h_ = 0.0, hdt_ = 0.0, skin_ = 0.0, kstab_ = 0.0, hyst_ = 0.0, rest_time_ = 0.0, cost_interval_ = 0.0;
   bool rot_ = false;
   int substep_id_ = -1;
@@ -1488,15 +1764,28 @@ class EdmEngine {
   HybridStats hstats_;
   std::vector<Vec<D>> vh_, acc_, f_, disp_;
   std::vector<Spin<D>> wh_, alpha_, tq_;
-  std::vector<double> minv_, iinv_, last_contact_, quiet_since_, ema_;
+  std::vector<double> minv_, iinv_, last_contact_, ema_;
+  std::vector<int> quiet_checks_;
   std::vector<int> slot_, soft_, pending_, iface_;
   std::vector<std::uint8_t> pending_reason_, touching_, near_;
   std::vector<int> rapid_;
   int repeats_ = 1;
+  // Per particle, one byte each (read for every neighbour of a prediction: kept compact).
+  std::vector<std::uint8_t> mode_;        // kHard, kSoft, kPending, kAsleep
+  std::vector<std::uint8_t> iface_flag_;  // a hard particle on the interface list
   std::vector<std::array<int, 2>> recent_;
   std::vector<std::array<double, 2>> recent_t_;
-  std::vector<PairEntry> pe_;
-  std::vector<WallEntry> we_;
+  bool uniform_ = false;              // one material and one radius: ctab_ = {pair, wall 0, wall 1, ...}
+  std::vector<SoftContact> ctab_;
+  std::map<ContactKey, std::uint32_t> ckeys_;
+  Springs springs_, wsprings_;
+  std::vector<PairEntry> pe_, pe_sleep_;  // entries of awake soft pairs; touching ones of sleepers
+  std::vector<WallEntry> we_, we_sleep_;
+  bool sleeping_ = false;                 // rest rule on
+  double rest_speed2_ = 0.0;
+  std::uint64_t sleep_every_ = 1, since_sleep_check_ = 0;
+  std::vector<int> sleep_id_;             // sleeping cluster of a particle (-1: none)
+  std::vector<std::vector<int>> sleepers_;
   struct WallNow {
     Vec<D> p, u, uh;
   };
@@ -1531,8 +1820,6 @@ class EdmEngine {
     int mat = 0;
     std::uint8_t type = kNone;  // kind of ev_t
     std::uint8_t aux = 0;       // crossing: 2 * axis + up
-    std::uint8_t mode = 0;      // hybrid: kHard, kSoft, kPending, kAsleep
-    std::uint8_t iface = 0;     // hybrid: a hard particle on the interface list
   };
   Array<Cold> cold_;
 

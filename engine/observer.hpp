@@ -43,6 +43,7 @@ struct ThermoSample {
   double temperature = 0.0;       // (1/N) sum m v^2 / d
   std::uint64_t collisions = 0;   // cumulative pair + wall collisions (soft: contacts begun)
   double pressure = 0.0;          // kinetic + collisional virial over the last interval
+  std::uint64_t soft = 0;         // particles in the soft set (awake or asleep): EDM 0, TDM all
 };
 
 // The state of every particle at one time, in particle-id order (a snapshot).

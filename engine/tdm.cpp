@@ -862,6 +862,7 @@ ThermoSample TdmEngine<D>::sample(double time) {
   s.rotational_energy = 0.5 * rot;
   s.potential_energy = pot;
   s.elastic_energy = el;
+  s.soft = N_;
   s.temperature = N_ > 0 ? mv2 / (D * static_cast<double>(N_)) : 0.0;
   s.collisions = pair_begun_ + wall_begun_;
   s.pressure = (mv2 + vir) / (D * sys_.volume());

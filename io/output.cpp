@@ -216,7 +216,8 @@ template class EventLogWriter<3>;
 
 ThermoCsvWriter::ThermoCsvWriter(const std::string& path) : path_(path) {
   f_ = open_or_throw(path, "w");
-  std::fputs("time,kinetic_energy,rotational_energy,potential_energy,temperature,collisions,pressure,elastic_energy\n",
+  std::fputs("time,kinetic_energy,rotational_energy,potential_energy,temperature,collisions,pressure,elastic_energy,"
+             "soft\n",
              f_);
 }
 
@@ -225,9 +226,9 @@ ThermoCsvWriter::~ThermoCsvWriter() {
 }
 
 void ThermoCsvWriter::on_sample(const ThermoSample& s) {
-  fmt::print(f_, "{:.17g},{:.17g},{:.17g},{:.17g},{:.17g},{},{:.17g},{:.17g}\n", s.time, s.kinetic_energy,
+  fmt::print(f_, "{:.17g},{:.17g},{:.17g},{:.17g},{:.17g},{},{:.17g},{:.17g},{}\n", s.time, s.kinetic_energy,
              s.rotational_energy, s.potential_energy, s.temperature, s.collisions, s.pressure,
-             s.elastic_energy);
+             s.elastic_energy, s.soft);
   std::fflush(f_);  // a run that stops early keeps every row written so far
 }
 

@@ -50,7 +50,7 @@ TEST(Cli, RunWritesEveryOutputWithTheDocumentedHeaders) {
   EXPECT_NE(r.out.find(d.string()), std::string::npos);  // says where the output went
   const std::string thermo = slurp(d / "thermo.csv");
   EXPECT_EQ(first_line(thermo),
-            "time,kinetic_energy,rotational_energy,potential_energy,temperature,collisions,pressure,elastic_energy");
+            "time,kinetic_energy,rotational_energy,potential_energy,temperature,collisions,pressure,elastic_energy,soft");
   // One row at t = 0 and one per interval (0.5) up to end_time = 1: header + 3 rows.
   EXPECT_EQ(std::count(thermo.begin(), thermo.end(), '\n'), 4);
   EXPECT_EQ(first_line(slurp(d / "final_state.csv")), "id,x,y,z,vx,vy,vz,wx,wy,wz,radius");

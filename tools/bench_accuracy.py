@@ -257,11 +257,14 @@ def draw(ax, rows, field, ylabel, title, methods):
         ys = [max(r[field], 1e-16) for r in ok]
         ax.plot(xs, ys, marker=marker, color=color, markersize=size, linestyle="-" if len(ok) > 1 else "none",
                 label=label)
-        for r, x, y in zip(ok, xs, ys):
+        for i, (r, x, y) in enumerate(zip(ok, xs, ys)):
             text = r["setting"] if method != "edm" else ("collapse at the Zeno time" if r["status"] == "collapse"
                                                          else r["status"])
-            ax.annotate(text, (x, y), textcoords="offset points", xytext=(6, -12 if method == "hybrid" else 5),
-                        fontsize=8, color=color)
+            if method == "hybrid":  # below the points, staggered: settings often cost about the same
+                ax.annotate(text, (x, y), textcoords="offset points", xytext=(4 + 12 * i, -16 - 11 * i), fontsize=8,
+                            color=color, arrowprops={"arrowstyle": "-", "color": color, "lw": 0.5})
+            else:
+                ax.annotate(text, (x, y), textcoords="offset points", xytext=(6, 5), fontsize=8, color=color)
     ax.set_xscale("log")
     ax.set_yscale("log")
     ax.set_xlabel("wall time per run (s, one core)")

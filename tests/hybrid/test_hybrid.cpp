@@ -288,21 +288,19 @@ System<D> settling_box(int n, double width_d, std::uint64_t seed) {
   return s;
 }
 
-// Bed height: mean top (z + R) of the highest tenth of the grains; packing fraction: the solid
-// volume of the grains whose centres lie below 0.8 of that height, over that slab's volume.
+// Bed height H = 2 <z>, twice the mean height of the grains' centres (a uniform bed on the floor
+// has its centre of volume at H/2), and packing fraction = solid volume / (H times the floor
+// area). Averages over every grain: the top-surface roughness of a random bed would make a
+// surface measure noisier than the 1 % compared.
 template <int D>
 std::pair<double, double> bed_measure(const RunResult<D>& r, double W) {
-  std::vector<double> top;
-  for (std::size_t i = 0; i < r.x.size(); ++i) top.push_back(r.x[i][D - 1] + r.radius[i]);
-  std::sort(top.begin(), top.end(), std::greater<>());
-  const std::size_t k = std::max<std::size_t>(1, top.size() / 10);
-  const double H = std::accumulate(top.begin(), top.begin() + k, 0.0) / k;
-  double solid = 0.0;
+  double zsum = 0.0, solid = 0.0;
   for (std::size_t i = 0; i < r.x.size(); ++i) {
-    const double z = r.x[i][D - 1];
-    if (z < 0.8 * H) solid += ball_volume<D>(r.radius[i]);
+    zsum += r.x[i][D - 1];
+    solid += ball_volume<D>(r.radius[i]);
   }
-  return {H, solid / (0.8 * H * std::pow(W, D - 1))};
+  const double H = 2.0 * zsum / static_cast<double>(r.x.size());
+  return {H, solid / (H * std::pow(W, D - 1))};
 }
 
 template <int D>
@@ -340,7 +338,7 @@ void check_settling_bed(int n, double width_d, double end_time) {
 }
 
 TEST(HybridBed, SettlesLikeTdm2D) { check_settling_bed<2>(kSanitized ? 200 : 1000, 30.0, 0.8); }
-TEST(HybridBed, SettlesLikeTdm3D) { check_settling_bed<3>(kSanitized ? 200 : 1000, 8.0, 0.6); }
+TEST(HybridBed, SettlesLikeTdm3D) { check_settling_bed<3>(kSanitized ? 200 : 1000, 8.0, 1.2); }
 
 }  // namespace
 }  // namespace matep

@@ -198,8 +198,10 @@ std::string describe(const Scene& scene, const System<D>& sys) {
                        restitution_text(m.restitution));
       if (rough.is_rough(static_cast<int>(a), static_cast<int>(a))) {
         const TangentialModel& t = rough.rule(static_cast<int>(a), static_cast<int>(a));
-        s += fmt::format("    rough: tangential {}, friction {}, {} {}\n", tangential_text(t.law), t.friction,
-                         t.law == TangentialLaw::Constant ? "beta" : "beta0", t.beta0);
+        s += fmt::format("    rough: tangential {}", tangential_text(t.law));
+        if (t.law != TangentialLaw::Constant) s += fmt::format(", friction {}", t.friction);
+        if (t.law != TangentialLaw::FemFit) s += fmt::format(", {} {}", t.law == TangentialLaw::Constant ? "beta" : "beta0", t.beta0);
+        s += "\n";
       }
     }
   } else if (scene.method == "tdm") {

@@ -13,10 +13,12 @@
 
 #include "contact/hard.hpp"
 #include "contact/predict.hpp"
+#include "contact/rough.hpp"
 #include "contact/soft.hpp"
 #include "contact/timestep.hpp"
 #include "engine/huge_pages.hpp"
 #include "engine/hybrid.hpp"
+#include "engine/rough_rules.hpp"
 #include "engine/soft_plan.hpp"
 #include "scheduler/calendar_queue.hpp"
 #include "scheduler/heap_queue.hpp"
@@ -80,8 +82,9 @@ class EdmEngine {
     all_elastic_ = true;
     for (const auto& mat : sys.materials) all_elastic_ = all_elastic_ && mat.restitution.is_elastic();
     for (const auto& wall : sys.walls) moving_walls_ = moving_walls_ || wall.oscillating();
-    // Hybrid: cells at least one largest diameter plus the capture skin wide, so that the cells
-    // around a particle hold every particle within the skin of it.
+    setup_rough();
+    // Hybrid: cells at least one largest diameter plus the soft list's skin wide, so that the
+    // cells around a particle hold every particle within that skin of it.
     build_cells(2.0 * rmax + (Hybrid ? lskin_ : 0.0));
     if constexpr (Hybrid) hybrid_arrays();
   }
@@ -602,8 +605,11 @@ class EdmEngine {
     if (log) {
       rec.vi_before = a.v;
       rec.vj_before = b.v;
+      fill_spins(rec, i, j, /*before=*/true);
     }
-    const double J = smooth_pair_collision(a.v, b.v, mass(i), mass(j), n, e);
+    const double J = rough_ && rough_rules_.is_rough(cold_[i].mat, cold_[j].mat)
+                         ? rough_pair(i, j, n, e)
+                         : smooth_pair_collision(a.v, b.v, mass(i), mass(j), n, e);
     virial_ += J * dist;  // r_ij . dp_i with dp_i = J n
     ++cold_[i].counter;
     ++cold_[j].counter;
@@ -652,8 +658,14 @@ class EdmEngine {
     if (set_.tc > 0.0 && now_ - cold_[i].last < set_.tc) e = 1.0;
     CollisionRecord<D> rec;
     const bool log = !collision_observers_.empty();
-    if (log) rec.vi_before = a.v;
-    smooth_moving_wall_collision(a.v, mass(i), wall.normal, u, e);
+    if (log) {
+      rec.vi_before = a.v;
+      fill_spins(rec, i, -1, /*before=*/true);
+    }
+    if (rough_ && rough_rules_.is_rough(cold_[i].mat, wall.material))
+      rough_wall(i, wall, u, e);
+    else
+      smooth_moving_wall_collision(a.v, mass(i), wall.normal, u, e);
     ++cold_[i].counter;
     ++counts_.wall;
     note_collision(i);
@@ -673,11 +685,54 @@ class EdmEngine {
     }
   }
 
-  void fill_spins(CollisionRecord<D>& rec, int i, int j) const {
+  // The spins of i (and j >= 0) into the record's before or after fields.
+  void fill_spins(CollisionRecord<D>& rec, int i, int j, bool before = false) const {
     if (sys_.w.empty()) return;
-    rec.wi_before = rec.wi_after = sys_.w[i];
-    if (j >= 0) rec.wj_before = rec.wj_after = sys_.w[j];
+    (before ? rec.wi_before : rec.wi_after) = sys_.w[i];
+    if (j >= 0) (before ? rec.wj_before : rec.wj_after) = sys_.w[j];
   }
+
+  // ---- rough hard spheres (contact/rough.hpp; rules per material pair: engine/rough_rules.hpp) --
+  // Smooth scenes never reach these: collide_pair / collide_wall test rough_ first, so a
+  // frictionless run pays one predictable branch per collision and carries no spins.
+  void setup_rough() {
+    rough_rules_ = make_rough_rules(sys_.materials);
+    rough_ = rough_rules_.any;
+    if (rough_ && sys_.w.size() != static_cast<std::size_t>(N_)) sys_.w.assign(N_, Spin<D>::Zero());
+  }
+
+  RoughBody<D> rough_body(int i) const {
+    RoughBody<D> b;
+    b.v = hot_[i].v;
+    b.w = sys_.w[i];
+    b.mass = mass(i);
+    b.radius = hot_[i].R;
+    b.q = inertia_factor<D>();
+    return b;
+  }
+
+  // Rough binary collision of i and j (both at now_, touching with unit normal n from j to i);
+  // returns the normal impulse J_n (the virial's r_ij . dp_i = |r_ij| J_n).
+  double rough_pair(int i, int j, const Vec<D>& n, double e) {
+    const RoughResult<D> r = rough_pair_collision<D>(rough_body(i), rough_body(j), n, e,
+                                                     rough_rules_.rule(cold_[i].mat, cold_[j].mat));
+    hot_[i].v = r.v_i;
+    hot_[j].v = r.v_j;
+    sys_.w[i] = r.w_i;
+    sys_.w[j] = r.w_j;
+    return r.normal_impulse;
+  }
+
+  // Rough collision of i with a wall moving at u (zero when static).
+  void rough_wall(int i, const Wall<D>& wall, const Vec<D>& u, double e) {
+    const RoughResult<D> r = rough_wall_collision<D>(rough_body(i), wall.normal, e,
+                                                     rough_rules_.rule(cold_[i].mat, wall.material), u);
+    hot_[i].v = r.v_i;
+    sys_.w[i] = r.w_i;
+  }
+
+  bool rough_ = false;       // some material pair is rough (spins are carried and changed)
+  RoughRules rough_rules_;   // per material pair (particle-particle and particle-wall)
 
   // All particles at time t (moved virtually, stored state untouched).
   void emit_snapshot(double t) {

@@ -28,6 +28,8 @@ struct Material {
   std::optional<double> stiffness;               // normal stiffness k_n (> 0)
   std::optional<double> dissipation;             // normal damping gamma_n (>= 0)
   std::optional<double> tangential_restitution;  // beta_t in [-1, 1]
+  // Rough hard spheres (EDM, engine/rough_rules.hpp): "" (unset) | "walton" | "constant" | "fem_fit".
+  std::string tangential;
 };
 
 template <int D>

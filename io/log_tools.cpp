@@ -17,6 +17,7 @@
 #include <stdexcept>
 #include <variant>
 
+#include "engine/rough_rules.hpp"
 #include "io/scene.hpp"
 
 namespace matep {
@@ -124,6 +125,11 @@ bool is_pair(std::uint8_t kind) { return kind == static_cast<std::uint8_t>(Event
 
 double dot3(const double* a, const double* b) { return a[0] * b[0] + a[1] * b[1] + a[2] * b[2]; }
 double norm3(const double* a) { return std::sqrt(dot3(a, a)); }
+void cross3(const double* a, const double* b, double* out) {
+  out[0] = a[1] * b[2] - a[2] * b[1];
+  out[1] = a[2] * b[0] - a[0] * b[2];
+  out[2] = a[0] * b[1] - a[1] * b[0];
+}
 
 // Output file that is removed again unless commit() is called.
 class OutFile {
@@ -455,6 +461,8 @@ struct SceneView {
   std::vector<double> mass;    // per particle
   std::vector<int> wall_material;
   std::vector<std::array<double, 3>> wall_normal;
+  std::vector<double> radius;  // per particle (rough collisions)
+  RoughRules rough;            // which material pairs are rough, and their rule
 };
 
 template <int D>
@@ -470,6 +478,12 @@ void fill_view(SceneView& v, const System<D>& sys, const Scene& scene, const Eve
   v.material = sys.material;
   v.mass.resize(sys.size());
   for (std::size_t p = 0; p < sys.size(); ++p) v.mass[p] = sys.mass(p);
+  v.radius = sys.radius;
+  try {
+    v.rough = make_rough_rules(sys.materials);
+  } catch (const std::invalid_argument& e) {
+    throw IoError(fmt::format("{}: {}", scene.path, e.what()));
+  }
   for (const auto& w : sys.walls) {
     v.wall_material.push_back(w.material);
     std::array<double, 3> n{0.0, 0.0, 0.0};
@@ -501,8 +515,122 @@ bool all_finite(const EventRecord& r) {
   return true;
 }
 
+// The checks of a rough collision (contact/rough.hpp), after the normal-velocity check:
+// angular momentum of each body about the contact point, the tangential contact-point velocity
+// reversed by a scalar beta in [-1, 1] (with a scene: the scene's tangential rule at this impact),
+// and the energy bookkeeping of translation + rotation. The radii come from the scene; without
+// one each body's radius is the one its angular-momentum balance implies (R = |n x dv|/(q |dw|)),
+// which still tests the direction of the spin change, the tangential rule and the energy.
+std::optional<Violation> check_rough(const EventRecord& r, const EventLogHeader& h, const SceneView* sv,
+                                     double tol, double ub, double V, int mat_i, int mat_j) {
+  auto fail = [](std::string check, std::string detail) {
+    return std::optional<Violation>(Violation{std::move(check), std::move(detail)});
+  };
+  const bool pair = is_pair(r.kind);
+  const double q = h.dimension == 2 ? 0.5 : 0.4;  // I/(m R^2): solid disk, solid sphere
+  const double* n = r.normal;
+  double dvi[3], dvj[3], dwi[3], dwj[3];
+  for (int c = 0; c < 3; ++c) {
+    dvi[c] = r.vi_after[c] - r.vi_before[c];
+    dvj[c] = pair ? r.vj_after[c] - r.vj_before[c] : 0.0;
+    dwi[c] = r.wi_after[c] - r.wi_before[c];
+    dwj[c] = pair ? r.wj_after[c] - r.wj_before[c] : 0.0;
+  }
+  // Angular impulse on each body about its centre: I dw = -R n x J_t, J_t = m_i dv_i = -m_j dv_j
+  // (contact/rough.hpp), i.e. q R dw_i = -n x dv_i and q R dw_j = +n x dv_j.
+  double ti[3], tj[3];
+  cross3(n, dvi, ti);
+  cross3(n, dvj, tj);
+  for (int c = 0; c < 3; ++c) tj[c] = -tj[c];
+  double Ri = 0.0, Rj = 0.0;
+  if (sv) {
+    Ri = sv->radius[r.i];
+    Rj = pair ? sv->radius[r.j] : 0.0;
+  } else {
+    auto infer = [&](const double* t, const double* dw) {
+      const double a = norm3(dw);
+      return a > 0.0 ? norm3(t) / (q * a) : 0.0;
+    };
+    Ri = infer(ti, dwi);
+    Rj = pair ? infer(tj, dwj) : 0.0;
+  }
+  const double W = Ri * norm3(r.wi_before) + (pair ? Rj * norm3(r.wj_before) : 0.0);
+  const double Vs = V + W;  // contact-point velocity scale
+  for (int b = 0; b < (pair ? 2 : 1); ++b) {
+    const double R = b == 0 ? Ri : Rj;
+    const double* t = b == 0 ? ti : tj;
+    const double* dw = b == 0 ? dwi : dwj;
+    double res[3];
+    for (int c = 0; c < 3; ++c) res[c] = q * R * dw[c] + t[c];
+    // Both sides are velocities: compare with the contact-point velocity scale.
+    // Without a scene, a spin change needs a tangential impulse to imply a radius.
+    const bool unbalanced = !sv && ((norm3(t) > tol * Vs && R == 0.0) || (norm3(dw) > 0.0 && !(norm3(t) > tol * Vs)));
+    if (!(norm3(res) <= tol * Vs) || unbalanced)
+      return fail("angular momentum",
+                  fmt::format("particle {}: the spin change {:.6g} does not balance the tangential impulse about "
+                              "the contact point: |q R dw + n x dv| = {:.6g} > tol x {:.6g} (R = {:.17g}{})",
+                              b == 0 ? r.i : r.j, norm3(dw), norm3(res), Vs, R,
+                              sv ? " from the scene" : ", implied by the record"));
+  }
+  // Contact-point relative velocity, before and after: v_i - v_j - (R_i w_i + R_j w_j) x n.
+  auto contact = [&](const double* vi, const double* vj, const double* wi, const double* wj, double* out) {
+    double w[3], wxn[3];
+    for (int c = 0; c < 3; ++c) w[c] = Ri * wi[c] + (pair ? Rj * wj[c] : 0.0);
+    cross3(w, n, wxn);
+    for (int c = 0; c < 3; ++c) out[c] = vi[c] - vj[c] - wxn[c];
+  };
+  double cb[3], ca[3], tb[3], ta[3];
+  contact(r.vi_before, r.vj_before, r.wi_before, r.wj_before, cb);
+  contact(r.vi_after, r.vj_after, r.wi_after, r.wj_after, ca);
+  const double cnb = dot3(cb, n), cna = dot3(ca, n);
+  for (int c = 0; c < 3; ++c) {
+    tb[c] = cb[c] - cnb * n[c];
+    ta[c] = ca[c] - cna * n[c];
+  }
+  const double vt = norm3(tb);
+  // Tangential restitution: v_t' = -beta v_t with beta in [-1, 1] (the scene's rule, or implied).
+  const double mi = r.mi, mj = pair ? r.mj : std::numeric_limits<double>::infinity();
+  const double mstar = pair ? mi * mj / (mi + mj) : mi;
+  const double mt = rough_tangential_mass(mi, q, mj, q);
+  double beta = vt > 0.0 ? -dot3(ta, tb) / (vt * vt) : -1.0;
+  std::string rule = "implied by the record";
+  if (sv) {
+    beta = rough_beta(sv->rough.rule(mat_i, mat_j), r.e, std::abs(cnb), vt, mstar / mt).beta;
+    rule = "the scene's tangential rule";
+  }
+  {
+    double res[3];
+    for (int c = 0; c < 3; ++c) res[c] = ta[c] + beta * tb[c];
+    if (!(norm3(res) <= tol * Vs) || !(beta >= -1.0 - tol && beta <= 1.0 + tol))
+      return fail("tangential restitution",
+                  fmt::format("contact-point tangential velocity after |v_t'| = {:.17g}, before |v_t| = {:.17g}: "
+                              "v_t' + beta v_t = {:.6g} > tol x {:.6g} with beta = {:.17g} ({})",
+                              norm3(ta), vt, norm3(res), Vs, beta, rule));
+  }
+  // Energy: lost = (1 - e^2) m* v_n^2/2 + m_t (|v_t|^2 - |v_t'|^2)/2 (contact/rough.hpp), the kinetic
+  // energy counting rotation (I = q m R^2); a wall collision in the wall's frame.
+  auto ke = [&](const double* vi, const double* vj, const double* wi, const double* wj) {
+    double gi[3];
+    for (int c = 0; c < 3; ++c) gi[c] = pair ? vi[c] : vi[c] - vj[c];
+    double k = 0.5 * mi * dot3(gi, gi) + 0.5 * q * mi * Ri * Ri * dot3(wi, wi);
+    if (pair) k += 0.5 * r.mj * dot3(vj, vj) + 0.5 * q * r.mj * Rj * Rj * dot3(wj, wj);
+    return k;
+  };
+  const double ke_b = ke(r.vi_before, r.vj_before, r.wi_before, r.wj_before);
+  const double ke_a = ke(r.vi_after, r.vj_after, r.wi_after, r.wj_after);
+  const double expected = 0.5 * (1.0 - r.e * r.e) * mstar * ub * ub + 0.5 * mt * (vt * vt - dot3(ta, ta));
+  const double lost = ke_b - ke_a;
+  if (!(std::abs(lost - expected) <= tol * ke_b) || !(lost >= -tol * ke_b))
+    return fail("energy", fmt::format("kinetic energy (translation + rotation) lost {:.17g} but (1 - e^2) m* v_n^2/2 + "
+                                      "m_t (v_t^2 - v_t'^2)/2 = {:.17g} (|diff| {:.3g} > tol x KE {:.6g}; e = {:.17g}, "
+                                      "m* = {:.17g}, m_t = {:.17g}, |v_t| = {:.17g}, |v_t'| = {:.17g})",
+                                      lost, expected, std::abs(lost - expected), ke_b, r.e, mstar, mt, vt,
+                                      norm3(ta)));
+  return std::nullopt;
+}
+
 std::optional<Violation> check_record(const EventRecord& r, const EventLogHeader& h,
-                                      const SceneView* sv, double tol) {
+                                      const SceneView* sv, double tol, bool& rough_out) {
   const bool pair = is_pair(r.kind);
   auto fail = [](std::string check, std::string detail) {
     return std::optional<Violation>(Violation{std::move(check), std::move(detail)});
@@ -557,6 +685,22 @@ std::optional<Violation> check_record(const EventRecord& r, const EventLogHeader
                                         "particles were separating",
                                         ub));
 
+  // A rough collision (friction: spins change): with a scene, the scene's rule for the material
+  // pair decides; without one, a record whose spins changed is taken as rough.
+  const int mat_i = sv ? sv->material[r.i] : -1;
+  const int mat_j = sv ? (pair ? sv->material[r.j] : sv->wall_material[r.j]) : -1;
+  bool rough = false;
+  if (sv) {
+    rough = sv->rough.is_rough(mat_i, mat_j);
+  } else {
+    double di[3], dj[3];
+    for (int c = 0; c < 3; ++c) {
+      di[c] = r.wi_after[c] - r.wi_before[c];
+      dj[c] = pair ? r.wj_after[c] - r.wj_before[c] : 0.0;
+    }
+    rough = std::max(norm3(di), norm3(dj)) > tol * (norm3(r.wi_before) + (pair ? norm3(r.wj_before) : 0.0));
+  }
+
   // Momentum: pair mi dvi + mj dvj = 0; wall: the impulse is along n (tangential velocity kept).
   if (pair) {
     double dp[3];
@@ -567,7 +711,7 @@ std::optional<Violation> check_record(const EventRecord& r, const EventLogHeader
       return fail("momentum", fmt::format("|mi dvi + mj dvj| = {:.6g} > tol x (mi |vi| + mj |vj|) = "
                                           "{:.6g} x {:.6g} (relative {:.3g})",
                                           res, tol, P, res / P));
-  } else {
+  } else if (!rough) {
     const double dn = dot3(dvi, r.normal);
     double dt[3];
     for (int c = 0; c < 3; ++c) dt[c] = dvi[c] - dn * r.normal[c];
@@ -585,6 +729,10 @@ std::optional<Violation> check_record(const EventRecord& r, const EventLogHeader
                                                "(e = {:.17g}; |diff| {:.3g} > tol x {:.6g})",
                                                ua, -r.e * ub, r.e, nres, V));
 
+  rough_out = rough;
+  if (rough) {
+    if (auto v = check_rough(r, h, sv, tol, ub, V, mat_i, mat_j)) return v;
+  } else {
   // Tangential relative velocity unchanged.
   double dtan[3];
   for (int c = 0; c < 3; ++c) dtan[c] = (ga[c] - ua * r.normal[c]) - (gb[c] - ub * r.normal[c]);
@@ -625,6 +773,7 @@ std::optional<Violation> check_record(const EventRecord& r, const EventLogHeader
                                         "(|diff| {:.3g} > tol x KE {:.6g}; e = {:.17g}, m* = {:.17g}, u_n = {:.17g})",
                                         lost, expected, eres, ke_b, r.e, mstar, -ub));
   }
+  }  // smooth
 
   // The scene's restitution model at the impact speed (mixed as the engine does).
   if (sv) {
@@ -671,7 +820,8 @@ VerifyResult verify_log(const std::string& path, const Scene* scene, double tol)
       ++index;
       continue;
     }
-    if (auto v = check_record(rec, lf.header, sv ? &*sv : nullptr, tol)) {
+    bool rough = false;
+    if (auto v = check_record(rec, lf.header, sv ? &*sv : nullptr, tol, rough)) {
       res.ok = false;
       res.index = index;
       res.offset = record_offset(index);
@@ -688,6 +838,7 @@ VerifyResult verify_log(const std::string& path, const Scene* scene, double tol)
                                 path, index, res.offset, rec.time, who, res.check, res.detail);
       return res;
     }
+    if (rough) ++res.rough;
     if (is_pair(rec.kind))
       ++res.pair;
     else

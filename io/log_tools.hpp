@@ -118,6 +118,7 @@ struct VerifyResult {
   std::uint64_t records = 0;     // records read (up to and including a failing one)
   std::uint64_t pair = 0, wall = 0;  // collision records that passed every check
   std::uint64_t skipped = 0;     // records that are not collisions (switches to soft / hard)
+  std::uint64_t rough = 0;       // of pair + wall: rough collisions (spins changed; see README)
   bool model_checked = false;    // restitution compared with the scene's materials
 
   // The first violation (when !ok).
@@ -134,7 +135,10 @@ struct VerifyResult {
 // Replays every collision record (see README for the checks). With a scene, also checks the
 // stored e against the scene's restitution models (e = 1 accepted when the scene has tc > 0),
 // masses, wall indices and wall normals; a scene whose dimension or particle count differs from
-// the log's throws IoError. Stops at the first violation. tol is relative to each record's
+// the log's throws IoError. Rough collisions (a material pair with friction or a tangential rule;
+// without a scene, a record whose spins change) are checked for angular momentum about the contact
+// point, tangential restitution and energy with rotation, with the radii and the tangential rule of
+// the scene (without one, the radii the records imply). Stops at the first violation. tol is relative to each record's
 // momentum / velocity / energy scale (absolute for e).
 VerifyResult verify_log(const std::string& path, const Scene* scene, double tol = 1e-9);
 

@@ -9,6 +9,7 @@
 #include <stdexcept>
 
 #include "engine/hybrid.hpp"
+#include "engine/rough_rules.hpp"
 #include "engine/tdm.hpp"
 #include "io/output.hpp"
 
@@ -72,6 +73,25 @@ SoftPlan soft_preflight(const Scene& scene, const System<D>& sys) {
   }
 }
 
+// The rough-sphere rules of an event-driven run (engine/rough_rules.hpp), reported as scene errors.
+template <int D>
+RoughRules rough_preflight(const Scene& scene, const System<D>& sys) {
+  try {
+    return make_rough_rules(sys.materials);
+  } catch (const std::invalid_argument& e) {
+    throw SceneError(fmt::format("{}: {}", scene.path, e.what()));
+  }
+}
+
+const char* tangential_text(TangentialLaw l) {
+  switch (l) {
+    case TangentialLaw::Walton: return "Walton";
+    case TangentialLaw::Constant: return "constant beta";
+    case TangentialLaw::FemFit: return "FEM fit (seed eq. 3.30)";
+  }
+  return "?";
+}
+
 class ProgressObserver final : public Observer<2>, public Observer<3> {
  public:
   ProgressObserver(const ProgressFn& fn, double end_time) : fn_(fn), end_(end_time) {}
@@ -107,6 +127,7 @@ RunOutcome run_system(const Scene& scene, const System<D>& sys, const std::strin
   const bool soft = scene.method == "tdm";
   const bool hybrid = scene.method == "hybrid";
   if (hybrid) soft_preflight(scene, sys);
+  if (!soft) rough_preflight(scene, sys);
   if (soft) {
     soft_preflight(scene, sys);
     if (scene.output.events)
@@ -192,12 +213,21 @@ std::string describe(const Scene& scene, const System<D>& sys) {
   s += fmt::format("method       {}", scene.method);
   if (scene.method == "edm") {
     s += fmt::format(" (event-driven hard {}, {} queue)\n", D == 3 ? "spheres" : "disks", scene.queue);
-    s += "contact      smooth instantaneous collisions (no friction, no rotation modelled)\n";
-    for (const auto& m : sys.materials) {
+    const RoughRules rough = rough_preflight(scene, sys);
+    s += rough.any ? "contact      rough instantaneous collisions where a material pair has friction or a tangential "
+                     "rule (spins modelled), smooth elsewhere\n"
+                   : "contact      smooth instantaneous collisions (no friction, no rotation modelled)\n";
+    for (std::size_t a = 0; a < sys.materials.size(); ++a) {
+      const auto& m = sys.materials[a];
       s += fmt::format("  [material.{}] density {}, restitution {}\n", m.name, m.density,
                        restitution_text(m.restitution));
-      if (m.friction && *m.friction > 0.0)
-        s += fmt::format("    note: friction = {} is not used by smooth EDM\n", *m.friction);
+      if (rough.is_rough(static_cast<int>(a), static_cast<int>(a))) {
+        const TangentialModel& t = rough.rule(static_cast<int>(a), static_cast<int>(a));
+        s += fmt::format("    rough: tangential {}", tangential_text(t.law));
+        if (t.law != TangentialLaw::Constant) s += fmt::format(", friction {}", t.friction);
+        if (t.law != TangentialLaw::FemFit) s += fmt::format(", {} {}", t.law == TangentialLaw::Constant ? "beta" : "beta0", t.beta0);
+        s += "\n";
+      }
     }
   } else if (scene.method == "tdm" || scene.method == "hybrid") {
     if (scene.method == "tdm")

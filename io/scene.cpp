@@ -98,7 +98,7 @@ Restitution read_restitution(const TableReader& m) {
 
 Material read_material(const std::string& name, const TableReader& m) {
   m.allow({"density", "restitution", "young", "poisson", "friction", "contact", "stiffness", "dissipation",
-           "tangential_restitution"});
+           "tangential_restitution", "tangential"});
   Material mat;
   mat.name = name;
   mat.density = m.number("density", kPositive);
@@ -110,6 +110,7 @@ Material read_material(const std::string& name, const TableReader& m) {
   mat.stiffness = m.number_opt("stiffness", kPositive);
   mat.dissipation = m.number_opt("dissipation", kNonNegative);
   mat.tangential_restitution = m.number_opt("tangential_restitution", Range{-1.0, 1.0});
+  mat.tangential = m.string_opt("tangential", {"walton", "constant", "fem_fit"}).value_or("");
   return mat;
 }
 

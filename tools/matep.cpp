@@ -201,6 +201,9 @@ int cmd_log(const std::vector<std::string>& args) {
     }
     std::string extra;
     if (r.model_checked) extra += fmt::format("; e matches the restitution models of {}", scene->path);
+    if (r.rough)
+      extra += fmt::format("; {} rough: angular momentum about the contact point, tangential restitution{}", r.rough,
+                           r.model_checked ? " (the scene's rule), radii from the scene" : " (radii implied by the records)");
     if (r.skipped) extra += fmt::format("; {} non-collision records skipped", r.skipped);
     fmt::print("verified {} records: momentum, restitution, energy OK ({} pair, {} wall collisions, tol {:g}{})\n",
                r.pair + r.wall, r.pair, r.wall, tol, extra);

@@ -138,6 +138,44 @@ TEST(Cli, BadInputGetsOneClearMessageAndExitStatus2) {
   fs::remove_all(d);
 }
 
+// The rough-sphere key `tangential`: an unknown law, and two colliding materials with different
+// laws, end with one line naming the file, the key and the value, exit status 2, nothing written.
+TEST(Cli, BadTangentialRuleGetsExitStatus2) {
+  const fs::path d = tmpdir("tangential");
+  const std::string scene = kCases + "rough_gas.toml";
+  const Result u = sh("run " + scene + " --set material.grain.tangential=coulomb --out " + (d / "u").string());
+  EXPECT_EQ(u.code, 2);
+  EXPECT_NE(u.out.find("rough_gas.toml"), std::string::npos) << u.out;
+  EXPECT_NE(u.out.find("material.grain.tangential"), std::string::npos) << u.out;
+  EXPECT_NE(u.out.find("coulomb"), std::string::npos) << u.out;
+  EXPECT_EQ(std::count(u.out.begin(), u.out.end(), '\n'), 1) << u.out;
+  EXPECT_FALSE(fs::exists(d / "u"));
+  // A wall material with another law than the particles'.
+  const fs::path two = d / "two.toml";
+  {
+    std::ofstream f(two);
+    f << "[run]\ndimension = 2\nend_time = 1.0\n[domain]\nlower = [0,0]\nupper = [10,10]\nperiodic = [true,false]\n"
+         "[material.a]\ndensity = 1\nfriction = 0.3\ntangential = \"walton\"\n"
+         "[material.b]\ndensity = 1\ntangential = \"constant\"\n"
+         "[particles.p]\nmaterial = \"a\"\nradius = 0.5\ncount = 4\narrangement = \"lattice\"\ntemperature = 1\n"
+         "[wall.floor]\ntype = \"plane\"\npoint = [0,0]\nnormal = [0,1]\nmaterial = \"b\"\n"
+         "[wall.roof]\ntype = \"plane\"\npoint = [0,10]\nnormal = [0,-1]\nmaterial = \"b\"\n";
+  }
+  for (const std::string& cmd : {"run " + two.string() + " --out " + (d / "t").string(), "check " + two.string()}) {
+    const Result t = sh(cmd);
+    EXPECT_EQ(t.code, 2) << t.out;
+    EXPECT_NE(t.out.find("two.toml"), std::string::npos) << t.out;
+    EXPECT_NE(t.out.find("material.a.tangential"), std::string::npos) << t.out;
+    EXPECT_NE(t.out.find("\"constant\""), std::string::npos) << t.out;
+    EXPECT_FALSE(fs::exists(d / "t"));
+  }
+  // The shipped rough case: check describes the rough rule.
+  const Result c = sh("check " + scene);
+  EXPECT_EQ(c.code, 0) << c.out;
+  EXPECT_NE(c.out.find("rough: tangential Walton, friction 0.3, beta0 0.4"), std::string::npos) << c.out;
+  fs::remove_all(d);
+}
+
 TEST(Cli, TruncatedEventLogIsReportedWithItsByteOffset) {
   const fs::path d = tmpdir("trunc");
   ASSERT_EQ(sh("run " + kCases + "elastic_gas.toml --set run.end_time=0.05 --out " + d.string()).code, 0);

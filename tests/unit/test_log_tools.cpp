@@ -589,3 +589,55 @@ TEST(LogStreaming, PeakMemoryDoesNotGrowWithTheLog) {
   EXPECT_LT(std::abs(rss_v - rss_s), 8 * 1024) << "verify holds records in memory";
   fs::remove_all(d);
 }
+
+// A rough gas (cases/rough_gas.toml: friction, Walton's rule): every record passes with and without
+// the scene (the scene gives the radii and the tangential rule; without it the radii the records
+// imply), and a spin altered in one record fails the angular-momentum balance about the contact
+// point, naming that record.
+TEST_F(LogTools, VerifyRoughLogAndAlteredSpin) {
+  const fs::path d = dir() / "rough";
+  const std::string scene = kCases + "rough_gas.toml";
+  ASSERT_EQ(sh("run " + scene + " --set run.end_time=3 --set output.events=true --quiet --out " + d.string()).code, 0);
+  const fs::path good = d / "events.bin";
+  const std::uint64_t n = matep::inspect_log(good.string()).records;
+  ASSERT_GT(n, 100u);
+  const matep::Scene sc = matep::load_scene(scene, {"run.end_time=3", "output.events=true"});
+  {
+    const matep::VerifyResult with = matep::verify_log(good.string(), &sc, 1e-12);
+    EXPECT_TRUE(with.ok) << with.message;
+    EXPECT_EQ(with.rough, n);
+    const matep::VerifyResult without = matep::verify_log(good.string(), nullptr, 1e-9);
+    EXPECT_TRUE(without.ok) << without.message;
+    // Records with no spin before (the gas starts without spin) still change spins: all rough.
+    EXPECT_EQ(without.rough, n);
+    const Result v = sh("log verify " + good.string() + " --scene " + scene);
+    EXPECT_EQ(v.code, 0) << v.out;
+    EXPECT_NE(v.out.find("rough"), std::string::npos) << v.out;
+  }
+  constexpr std::uint64_t kOffWiAfter = 216;  // wi_after.x within a record (io/output.cpp)
+  const std::uint64_t k = n / 2;
+  const std::uint64_t off = matep::record_offset(k);
+  for (const int c : {0, 1, 2}) {
+    const fs::path bad = d / "altered.bin";
+    fs::copy_file(good, bad, fs::copy_options::overwrite_existing);
+    const double w = peek_double(bad, off + kOffWiAfter + 8 * c);
+    poke_double(bad, off + kOffWiAfter + 8 * c, w + 1e-6 * (std::abs(w) + 1.0));
+    const Result r = sh("log verify " + bad.string() + " --scene " + scene);
+    EXPECT_EQ(r.code, 1) << r.out;
+    EXPECT_NE(r.out.find("record " + std::to_string(k) + " at byte offset " + std::to_string(off)), std::string::npos)
+        << r.out;
+    const matep::VerifyResult res = matep::verify_log(bad.string(), &sc, 1e-9);
+    EXPECT_FALSE(res.ok);
+    EXPECT_EQ(res.index, k);
+    EXPECT_EQ(res.check, "angular momentum") << res.message;
+    // Without the scene the implied radius no longer fits the rest of the record.
+    const matep::VerifyResult blind = matep::verify_log(bad.string(), nullptr, 1e-9);
+    EXPECT_FALSE(blind.ok) << "component " << c;
+    EXPECT_EQ(blind.index, k) << blind.message;
+  }
+  // A scene with another tangential rule: the tangential-restitution check names the first record.
+  const matep::Scene other = matep::load_scene(scene, {"material.grain.tangential_restitution=0.2"});
+  const matep::VerifyResult wrong = matep::verify_log(good.string(), &other, 1e-9);
+  EXPECT_FALSE(wrong.ok);
+  EXPECT_EQ(wrong.check, "tangential restitution") << wrong.message;
+}

@@ -319,6 +319,17 @@ TEST(Scene, SoftSphereKeysAreStored) {
   expect_error(kScene2D, {"material.rubber.contact", "\"spring\""}, {"material.rubber.contact=spring"});
 }
 
+TEST(Scene, TangentialRuleKey) {
+  for (const char* law : {"walton", "constant", "fem_fit"}) {
+    const Scene sc = load(kScene2D, {std::string("material.rubber.tangential=") + law});
+    EXPECT_EQ(std::get<System<2>>(sc.system).materials[1].tangential, law);
+  }
+  EXPECT_EQ(std::get<System<2>>(load(kScene2D).system).materials[1].tangential, "");
+  expect_error(kScene2D, {"material.rubber.tangential", "\"coulomb\"", "walton"},
+               {"material.rubber.tangential=coulomb"});
+  expect_error(kScene2D, {"material.rubber.tangential", "string"}, {"material.rubber.tangential=3"});
+}
+
 // ------------------------------------------------------------------------------- overrides
 
 TEST(Scene, OverridesNumberStringVectorAndNestedKey) {

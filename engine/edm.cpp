@@ -597,7 +597,17 @@ class EdmEngine {
     const double dist = r.norm();
     const Vec<D> n = r / dist;
     const double u = (a.v - b.v).dot(n);
-    if (!(u < 0.0)) return;  // receding at contact (round-off): no collision
+    if (!(u < 0.0)) {
+      // Touching without a normal approach (the predictor saw approach at round-off level): a
+      // contact without impact, the zero-time limit of a collapsing group. It counts towards
+      // the collapse detector, so that a run cannot repeat this event forever at one instant.
+      ++counts_.stale;
+      ++cold_[i].counter;
+      ++cold_[j].counter;
+      note_collision(i);
+      note_collision(j);
+      return;
+    }
     double e = all_elastic_ ? 1.0 : restitution(cold_[i].mat, cold_[j].mat, -u);
     if (set_.tc > 0.0 && (now_ - cold_[i].last < set_.tc || now_ - cold_[j].last < set_.tc)) e = 1.0;
     CollisionRecord<D> rec;
@@ -1675,6 +1685,12 @@ class EdmEngine {
       min_image(dx);
       const double cut = hot_[e.i].R + hot_[e.j].R + skin_;
       if (dx.squaredNorm() < cut * cut) ok[a] = ok[b] = 0;
+    }
+    if (getenv("MATEP_DEBUG_SLEEP")) {
+      int roots = 0, okr = 0; double maxv2 = 0, big = 0; int bigr = -1;
+      for (int k = 0; k < n; ++k) if (find(k) == k) { ++roots; okr += ok[k]; if (count[k] > big) { big = count[k]; bigr = k; } }
+      for (int k = 0; k < n; ++k) if (find(k) == bigr) maxv2 = std::max(maxv2, hot_[soft_[k]].v.squaredNorm());
+      fprintf(stderr, "t=%g soft=%d clusters=%d ok=%d big=%g bigok=%d bigrms=%g bigmax=%g qc=%d\n", hot_[soft_[0]].t, n, roots, okr, big, bigr>=0?int(ok[bigr]):-1, bigr>=0?std::sqrt(v2[bigr]/count[bigr]):0.0, std::sqrt(maxv2), bigr>=0?quiet_checks_[soft_[bigr]]:-1);
     }
     std::vector<int> cid(n, -1);
     bool any = false;

@@ -440,6 +440,7 @@ class EdmEngine {
 
   // Full prediction for particle i, which must be at time `now`: crossing, walls, all pairs.
   void predict(int i, double now) {
+    if constexpr (Hybrid) iface_next_[i] = 0.0;  // its course changed: capture check at the next substep
     predict_crossing(i, now);
     const Hot<D>& h = hot_[i];
     double best = kNever;
@@ -932,6 +933,7 @@ class EdmEngine {
     mode_.assign(N_, kHard);
     sleep_id_.assign(N_, -1);
     iface_flag_.assign(N_, 0);
+    iface_next_.assign(N_, 0.0);
     recent_t_.assign(N_, {-kNever, -kNever});
     wall_now_.resize(sys_.walls.size());
   }
@@ -939,6 +941,7 @@ class EdmEngine {
   double inv_mass(int i) const { return minv_[i]; }
 
   void mark_interface(int i) {
+    iface_next_[i] = 0.0;  // check at the next substep
     if (iface_flag_[i]) return;
     iface_flag_[i] = 1;
     iface_.push_back(i);
@@ -1344,10 +1347,12 @@ class EdmEngine {
     if (dirty_) rebuild_entries(t);
     soft_forces(t);
     // 5. Full-step velocities; release and rest.
+    double vmax2 = 0.0;
     for (std::size_t s = 0; s < soft_.size();) {
       const int i = soft_[s];
       Vec<D> a = f_[i] * minv_[i] + g_;
       hot_[i].v = vh_[i] + hdt_ * a;
+      vmax2 = std::max(vmax2, hot_[i].v.squaredNorm());
       if (rot_) sys_.w[i] = wh_[i] + hdt_ * (tq_[i] * iinv_[i]);
       if (touching_[i]) last_contact_[i] = t;
       const bool free = !touching_[i] && !near_[i] && t - last_contact_[i] >= hyst_;
@@ -1358,6 +1363,7 @@ class EdmEngine {
       }
       ++s;
     }
+    vsoft_max_ = std::sqrt(vmax2);
     if (sleeping_ && ++since_sleep_check_ >= sleep_every_) {
       since_sleep_check_ = 0;
       sleep_quiet_clusters();
@@ -1382,24 +1388,39 @@ class EdmEngine {
         iface_flag_[i] = 0;
         continue;
       }
+      if (t < iface_next_[i]) {  // too far from every soft particle to reach the skin yet
+        iface_[keep++] = i;
+        continue;
+      }
       const Hot<D>& hi = hot_[i];
       const double dt = t - hi.t;
       const Vec<D> xi = hi.x + hi.v * dt + (0.5 * dt * dt) * g_;
       bool any = false, in = false;
+      double gmin = kNever;
       for_neighbours(i, [&](int j, const Vec<D>& shift) {
         const std::uint8_t m = mode_[j];
         if (m != kSoft && m != kAsleep) return;
         any = true;
         const double cut = hi.R + hot_[j].R + skin_;
-        if ((xi - hot_[j].x - shift).squaredNorm() < cut * cut) {
+        const double d2 = (xi - hot_[j].x - shift).squaredNorm();
+        if (d2 < cut * cut) {
           in = true;
           if (m == kAsleep) wake(sleep_id_[j], t);
+        } else {
+          gmin = std::min(gmin, std::sqrt(d2) - cut);
         }
       });
       if (in) {
         iface_flag_[i] = 0;
         join(i, t, kByCapture);
       } else if (any) {
+        // The next check: the gap beyond the skin cannot close before gmin / (closing speed
+        // bound): i's speed (plus what gravity adds over the longest skip) and twice the fastest
+        // soft particle's. At most kMaxSkip substeps; a collision of i or a soft particle moving
+        // next to it brings the check forward (predict, mark_interface).
+        const double span = kMaxSkip * h_;
+        const double vb = (hi.v + g_ * dt).norm() + g_.norm() * span + 2.0 * vsoft_max_;
+        iface_next_[i] = vb > 0.0 ? t + std::min(span, gmin / vb) : t + span;
         iface_[keep++] = i;
       } else {
         iface_flag_[i] = 0;
@@ -1635,11 +1656,10 @@ class EdmEngine {
 
   // ---- rest rule: sleeping clusters ----
 
-  // Puts to sleep every cluster of awake soft particles (connected by touching contacts) that has
-  // been quiet at the last four checks (a quarter rest_time apart): its rms speed (including the
-  // surface speed of spins, R w) below rest_speed and no member faster than 10 rest_speed; that
-  // touches no oscillating wall; and that has no awake particle of another cluster within the
-  // skin.
+  // Puts to sleep every cluster of awake soft particles (connected by contacts and gaps below the
+  // skin) that has been quiet at the last four checks (a quarter rest_time apart): its rms speed
+  // (including the surface speed of spins, R w) below rest_speed and no member faster than
+  // 10 rest_speed; and that touches no oscillating wall.
   void sleep_quiet_clusters() {
     const int n = static_cast<int>(soft_.size());
     if (n == 0) return;
@@ -1649,11 +1669,21 @@ class EdmEngine {
       while (parent[a] != a) a = parent[a] = parent[parent[a]];
       return a;
     };
-    for (const auto& e : pe_)
-      if (e.touch) {
+    // Clusters for the rest rule: linked by a contact or by a gap below the skin (a rattler next
+    // to a bed belongs to it: the bed sleeps with it or not at all).
+    for (const auto& e : pe_) {
+      bool link = e.touch;
+      if (!link) {
+        Vec<D> dx = hot_[e.i].x - hot_[e.j].x;
+        min_image(dx);
+        const double cut = hot_[e.i].R + hot_[e.j].R + skin_;
+        link = dx.squaredNorm() < cut * cut;
+      }
+      if (link) {
         const int a = find(slot_[e.i]), b = find(slot_[e.j]);
         if (a != b) parent[std::max(a, b)] = std::min(a, b);
       }
+    }
     std::vector<double> v2(n, 0.0), count(n, 0.0);
     std::vector<std::uint8_t> ok(n, 1);
     for (int k = 0; k < n; ++k) {
@@ -1675,23 +1705,6 @@ class EdmEngine {
       if (quiet_checks_[soft_[k]] < 4) ok[find(k)] = 0;
     for (const auto& e : we_)
       if (e.touch && sys_.walls[e.w].oscillating()) ok[find(slot_[e.i])] = 0;
-    // A near (within the skin, not touching) pair of different clusters: both stay awake unless
-    // both may sleep.
-    for (const auto& e : pe_) {
-      if (e.touch) continue;
-      const int a = find(slot_[e.i]), b = find(slot_[e.j]);
-      if (a == b || (ok[a] && ok[b])) continue;
-      Vec<D> dx = hot_[e.i].x - hot_[e.j].x;
-      min_image(dx);
-      const double cut = hot_[e.i].R + hot_[e.j].R + skin_;
-      if (dx.squaredNorm() < cut * cut) ok[a] = ok[b] = 0;
-    }
-    if (getenv("MATEP_DEBUG_SLEEP")) {
-      int roots = 0, okr = 0; double maxv2 = 0, big = 0; int bigr = -1;
-      for (int k = 0; k < n; ++k) if (find(k) == k) { ++roots; okr += ok[k]; if (count[k] > big) { big = count[k]; bigr = k; } }
-      for (int k = 0; k < n; ++k) if (find(k) == bigr) maxv2 = std::max(maxv2, hot_[soft_[k]].v.squaredNorm());
-      fprintf(stderr, "t=%g soft=%d clusters=%d ok=%d big=%g bigok=%d bigrms=%g bigmax=%g qc=%d\n", hot_[soft_[0]].t, n, roots, okr, big, bigr>=0?int(ok[bigr]):-1, bigr>=0?std::sqrt(v2[bigr]/count[bigr]):0.0, std::sqrt(maxv2), bigr>=0?quiet_checks_[soft_[bigr]]:-1);
-    }
     std::vector<int> cid(n, -1);
     bool any = false;
     for (int k = 0; k < n; ++k) {
@@ -1844,6 +1857,9 @@ class EdmEngine {
   // Per particle, one byte each (read for every neighbour of a prediction: kept compact).
   std::vector<std::uint8_t> mode_;        // kHard, kSoft, kPending, kAsleep
   std::vector<std::uint8_t> iface_flag_;  // a hard particle on the interface list
+  std::vector<double> iface_next_;        // its next capture check (substep time)
+  double vsoft_max_ = 0.0;                // fastest awake soft particle at the last substep
+  static constexpr double kMaxSkip = 64.0;
   std::vector<std::array<int, 2>> recent_;
   std::vector<std::array<double, 2>> recent_t_;
   bool uniform_ = false;              // one material and one radius: ctab_ = {pair, wall 0, wall 1, ...}

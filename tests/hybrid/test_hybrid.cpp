@@ -115,6 +115,8 @@ TEST(HybridBall, ComesToRestAtTheZenoTimeAndTdmAgrees) {
   const double tt = rest_time(td.samples, m, R, 1e-6);
   EXPECT_NEAR(tt, zeno, 0.01 * zeno);
   EXPECT_NEAR(th, tt, 0.01 * zeno);
+  ::testing::Test::RecordProperty("rest_time_hybrid_tdm_zeno", fmt::format("{:.5f} {:.5f} {:.5f}", th, tt, zeno));
+  ::testing::Test::RecordProperty("hard_bounces", fmt::format("{}", rh.counts.wall));
   // The ball ends at rest on the floor, overlapped by the static Hertz overlap (m g/K)^(2/3),
   // K = (4/3) E* sqrt(R) (rigid floor, E* = E/(1 - nu^2)).
   const double K = 4.0 / 3.0 * (2e11 / (1.0 - 0.09)) * std::sqrt(R);
@@ -179,12 +181,15 @@ TEST(HybridSwitch, OneClusterSoftAndBackConservesMomentumAndEnergy) {
     ke1 += 0.5 * s.mass(i) * r.v[i].squaredNorm();
   }
   EXPECT_LT((p1 - p0).norm(), 1e-14 * p0.norm());
+  ::testing::Test::RecordProperty("momentum_rel", fmt::format("{:.3g}", (p1 - p0).norm() / p0.norm()));
   // Energy: kinetic + elastic is constant through the soft phase up to the TDM error (second order,
   // dt = t_c/50), and the kinetic energy after release equals the initial one.
   double worst = 0.0;
   for (const auto& smp : rec.samples) worst = std::max(worst, std::abs(smp.kinetic_energy + smp.elastic_energy - ke0));
   EXPECT_LT(worst, 2e-3 * ke0);
   EXPECT_NEAR(ke1, ke0, 2e-3 * ke0);
+  ::testing::Test::RecordProperty("energy_rel_worst_final",
+                                  fmt::format("{:.3g} {:.3g}", worst / ke0, std::abs(ke1 - ke0) / ke0));
   // The switch records carry the velocities: at each switch the particle's velocity is unchanged.
   for (const auto& w : rec.switches) EXPECT_EQ(w.vi_before, w.vi_after);
 }
@@ -210,6 +215,8 @@ TEST(HybridGas, DiluteGasStaysHardAndFollowsEdm) {
   // trajectories once any switch happens; identical ones when none does).
   const double ce = static_cast<double>(re.counts.pair), ch = static_cast<double>(rh.counts.pair);
   EXPECT_NEAR(ch / ce, 1.0, 0.03);
+  ::testing::Test::RecordProperty("switches_collisions_ratio",
+                                  fmt::format("{} {} {:.4f}", rh.hybrid.to_soft, re.counts.pair, ch / ce));
   auto temp = [&](const RunResult<3>& r) {
     double mv2 = 0.0;
     for (std::size_t i = 0; i < s.size(); ++i) mv2 += s.mass(i) * r.v[i].squaredNorm();

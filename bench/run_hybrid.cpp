@@ -1,0 +1,151 @@
+// Hybrid against the pure methods on the same scene, wall time of whole runs (one core), each
+// method alternated with its baseline in the same process and reported as medians of the ratios:
+//  * dilute gas (e = 0.95, packing fraction 0.05, no gravity, 32 768 spheres): hybrid / EDM,
+//    the issue's bound is 1.1 (the hybrid must stay hard and cost what EDM costs);
+//  * pour and settle (cases/pour_settle.toml): hybrid / TDM at the same step, with the bed height
+//    (2 <z>) and the kinetic-energy curve compared (the issue's bound on the time ratio is 1/3).
+// Usage: matep_bench_hybrid [--repeats N] [--only gas|pour]
+#include <fmt/format.h>
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <cstring>
+#include <string>
+#include <vector>
+
+#include "engine/edm.hpp"
+#include "engine/hybrid.hpp"
+#include "engine/tdm.hpp"
+#include "io/scene.hpp"
+
+using namespace matep;
+
+namespace {
+
+double median(std::vector<double> v) {
+  std::sort(v.begin(), v.end());
+  return v[v.size() / 2];
+}
+
+struct KeCurve final : Observer<3> {
+  std::vector<double> t, ke;
+  void on_sample(const ThermoSample& s) override {
+    t.push_back(s.time);
+    ke.push_back(s.kinetic_energy);
+  }
+};
+
+HybridSettings hybrid_of(const Scene& s) {
+  HybridSettings h;
+  h.dt = s.dt.value_or(0.0);
+  if (s.hybrid.stability) h.stability = *s.hybrid.stability;
+  if (s.hybrid.repeats) h.repeats = *s.hybrid.repeats;
+  if (s.hybrid.hysteresis) h.hysteresis = *s.hybrid.hysteresis;
+  if (s.hybrid.skin) h.skin = *s.hybrid.skin;
+  if (s.hybrid.cost_ratio) h.cost_ratio = *s.hybrid.cost_ratio;
+  if (s.hybrid.rest_speed) h.rest_speed = *s.hybrid.rest_speed;
+  if (s.hybrid.rest_time) h.rest_time = *s.hybrid.rest_time;
+  return h;
+}
+
+double bed_height(const RunResult<3>& r) {
+  double z = 0.0;
+  for (const auto& x : r.x) z += x[2];
+  return 2.0 * z / static_cast<double>(r.x.size());
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  int repeats = 3;
+  std::string only;
+  for (int a = 1; a < argc; ++a) {
+    if (!std::strcmp(argv[a], "--repeats") && a + 1 < argc) repeats = std::atoi(argv[++a]);
+    else if (!std::strcmp(argv[a], "--only") && a + 1 < argc) only = argv[++a];
+  }
+  const std::string src = MATEP_SOURCE_DIR;
+  fmt::print("Hybrid against the pure methods, whole runs on one core, medians of {} alternated pairs.\n\n", repeats);
+  fmt::print("| case | baseline | baseline s | hybrid s | hybrid / baseline | switches to soft | check |\n");
+  fmt::print("|---|---|---:|---:|---:|---:|---|\n");
+  if (only.empty() || only == "gas") {
+    const std::string text = R"(
+[run]
+dimension = 3
+method = "hybrid"
+end_time = 20.0
+seed = 9
+[domain]
+lower = [0.0, 0.0, 0.0]
+upper = [65.0, 65.0, 65.0]
+periodic = [true, true, true]
+[material.g]
+density = 1.909859317102744
+restitution = 0.95
+contact = "hertz"
+young = 1.0e7
+poisson = 0.3
+[particles.a]
+material = "g"
+radius = 0.5
+count = 32768
+arrangement = "lattice"
+temperature = 1.0
+)";
+    const Scene scene = load_scene_string(text, "dilute_gas", "");
+    const auto& sys = std::get<System<3>>(scene.system);
+    EdmSettings es;
+    es.end_time = scene.end_time;
+    std::vector<double> te, th, ratio;
+    std::uint64_t switches = 0, ce = 0, ch = 0;
+    for (int k = 0; k < repeats; ++k) {
+      const RunResult<3> re = run_edm<3>(sys, es, QueueKind::Calendar);
+      const RunResult<3> rh = run_hybrid<3>(sys, es, hybrid_of(scene));
+      te.push_back(re.wall_seconds);
+      th.push_back(rh.wall_seconds);
+      ratio.push_back(rh.wall_seconds / re.wall_seconds);
+      switches = rh.hybrid.to_soft;
+      ce = re.counts.pair;
+      ch = rh.counts.pair;
+    }
+    fmt::print("| dilute gas, e 0.95, phi 0.05, N 32768, t = 20 | EDM | {:.3f} | {:.3f} | {:.3f} | {} | pair collisions {} vs {} |\n",
+               median(te), median(th), median(ratio), switches, ch, ce);
+    std::fflush(stdout);
+  }
+  if (only.empty() || only == "pour") {
+    const Scene scene = load_scene(src + "/cases/pour_settle.toml");
+    const auto& sys = std::get<System<3>>(scene.system);
+    EdmSettings es;
+    es.end_time = scene.end_time;
+    es.thermo_interval = 0.01;
+    TdmSettings ts;
+    ts.end_time = scene.end_time;
+    ts.threads = 1;
+    ts.thermo_interval = 0.01;
+    std::vector<double> tt, th, ratio;
+    double hh = 0.0, ht = 0.0, ke_err = 0.0;
+    std::uint64_t switches = 0;
+    for (int k = 0; k < repeats; ++k) {
+      KeCurve ct, ch;
+      const RunResult<3> rt = run_tdm<3>(sys, ts, {&ct});
+      const RunResult<3> rh = run_hybrid<3>(sys, es, hybrid_of(scene), {&ch});
+      tt.push_back(rt.wall_seconds);
+      th.push_back(rh.wall_seconds);
+      ratio.push_back(rh.wall_seconds / rt.wall_seconds);
+      hh = bed_height(rh);
+      ht = bed_height(rt);
+      // Kinetic-energy curves: the largest difference at the common sample times, relative to the
+      // curve's peak.
+      double peak = 0.0, worst = 0.0;
+      for (double v : ct.ke) peak = std::max(peak, v);
+      for (std::size_t a = 0; a < std::min(ct.ke.size(), ch.ke.size()); ++a)
+        worst = std::max(worst, std::abs(ct.ke[a] - ch.ke[a]));
+      ke_err = worst / peak;
+      switches = rh.hybrid.to_soft;
+    }
+    fmt::print("| pour and settle (cases/pour_settle.toml), N 2000, t = {} | TDM | {:.2f} | {:.2f} | {:.3f} | {} | bed height {:.5g} vs {:.5g} ({:+.2f} %), KE curve max diff {:.2f} % of peak |\n",
+               scene.end_time, median(tt), median(th), median(ratio), switches, hh, ht, 100.0 * (hh / ht - 1.0),
+               100.0 * ke_err);
+  }
+  return 0;
+}

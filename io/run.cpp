@@ -178,6 +178,11 @@ RunOutcome run_system(const Scene& scene, const System<D>& sys, const std::strin
   out.steps = res.soft.steps;
   out.dt = res.soft.dt;
   out.particle_steps_per_second = res.soft.particle_steps_per_second;
+  out.soft_particle_steps = res.hybrid.soft_particle_steps;
+  out.to_soft = res.hybrid.to_soft;
+  out.to_hard = res.hybrid.to_hard;
+  out.soft_at_end = res.hybrid.soft_at_end;
+  out.slept = res.hybrid.slept;
   return out;
 }
 
@@ -256,12 +261,12 @@ std::string describe(const Scene& scene, const System<D>& sys) {
                      dt > 0.0 ? std::ceil(scene.end_time / dt) : 0.0);
     if (scene.method == "hybrid") {
       const HybridSettings h = hybrid_settings(scene);
-      s += fmt::format("hybrid rule  soft when a collision follows the previous one within {} t_c, or the collision\n"
-                       "             interval falls below {} substeps (cost); capture skin {} of the smallest\n"
+      s += fmt::format("hybrid rule  soft when {} collisions in a row each follow the previous one within {} t_c, or the\n"
+                       "             collision interval falls below {} substeps (cost); capture skin {} of the smallest\n"
                        "             diameter; release after {:.6g} s without contact{}\n",
-                       h.stability, h.cost_ratio, h.skin,
+                       h.repeats, h.stability, h.cost_ratio, h.skin,
                        h.hysteresis > 0.0 ? h.hysteresis : 10.0 * h.stability * plan.contact_time,
-                       h.rest_speed > 0.0 ? fmt::format("; clusters slower than {} m/s sleep", h.rest_speed)
+                       h.rest_speed > 0.0 ? fmt::format("; quiet clusters (rms speed < {} m/s) sleep", h.rest_speed)
                                           : std::string());
     }
   } else {

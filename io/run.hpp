@@ -17,6 +17,8 @@ struct RunOutcome {
   std::uint64_t steps = 0;       // TDM: time steps taken
   double dt = 0.0;               // TDM: time step
   double particle_steps_per_second = 0.0;
+  // Hybrid: soft particle-steps, switches and the soft particles at the end.
+  std::uint64_t soft_particle_steps = 0, to_soft = 0, to_hard = 0, soft_at_end = 0, slept = 0;
 };
 
 // Progress callback: simulated time, fraction done, events (EDM) or steps (TDM) so far.

@@ -121,6 +121,12 @@ int cmd_run(const std::vector<std::string>& rest) {
   if (scene.method == "edm")
     fmt::print("matep: {} collisions in {:.3f} s wall; output written to {}/\n", out.collisions,
                out.wall_seconds, out.out_dir);
+  else if (scene.method == "hybrid")
+    fmt::print("matep: {} hard collisions, {} substeps of {:.6g} ({} soft particle-steps), {} switches to soft and "
+               "{} to hard, {} soft at the end{}, in {:.3f} s wall; output written to {}/\n",
+               out.collisions, out.steps, out.dt, out.soft_particle_steps, out.to_soft, out.to_hard, out.soft_at_end,
+               out.slept > 0 ? fmt::format(" ({} put to sleep)", out.slept) : std::string(), out.wall_seconds,
+               out.out_dir);
   else
     fmt::print("matep: {} steps of {:.6g} ({} contacts begun) in {:.3f} s wall, {:.3g} particle-steps/s; "
                "output written to {}/\n",

@@ -230,7 +230,7 @@ TEST(HybridGas, DiluteGasStaysHardAndFollowsEdm) {
 // n glass grains (d = 1 cm; 2D: +-10 % radii) at random in a box with floor and side walls, at rest,
 // e = 0.5, frictionless: they fall and settle into a bed.
 template <int D>
-System<D> settling_box(int n, double width_d, std::uint64_t seed) {
+System<D> settling_box(int n, double width_d, std::uint64_t seed, double friction = 0.0) {
   System<D> s;
   const double d = 0.01, R = d / 2;
   const double W = width_d * d;
@@ -250,6 +250,7 @@ System<D> settling_box(int n, double width_d, std::uint64_t seed) {
   // 3D: Hertz (E = 1e7 Pa, overlaps ~1 % of d). 2D: a linear spring-dashpot (disks have the mass
   // of a unit-thickness slab, 2500 pi R^2 = 0.2 kg/m; k = 2e7 N/m gives overlaps of a few % of d),
   // whose damping does not vanish at small overlaps: a 2D Hertz bed rings for seconds.
+  if (friction > 0.0) m.friction = friction;
   if (D == 3) {
     m.contact = "hertz";
     m.young = 1e7;
@@ -312,8 +313,8 @@ std::pair<double, double> bed_measure(const RunResult<D>& r, double W) {
 }
 
 template <int D>
-void check_settling_bed(int n, double width_d, double end_time) {
-  const System<D> s = settling_box<D>(n, width_d, 11);
+void check_settling_bed(int n, double width_d, double end_time, double friction = 0.0) {
+  const System<D> s = settling_box<D>(n, width_d, 11, friction);
   const double W = width_d * 0.01;
   EdmSettings es;
   es.end_time = end_time;
@@ -346,7 +347,13 @@ void check_settling_bed(int n, double width_d, double end_time) {
 }
 
 TEST(HybridBed, SettlesLikeTdm2D) { check_settling_bed<2>(kSanitized ? 200 : 1000, 30.0, 0.8); }
-TEST(HybridBed, SettlesLikeTdm3D) { check_settling_bed<3>(kSanitized ? 200 : 1000, 8.0, 1.2); }
+// Frictional grains (mu = 0.5): hard collisions are rough (Walton, beta0 = 0.4), soft contacts
+// Hertz-Mindlin with the same friction (issue 6: the hybrid uses the rough operator for hard
+// frictional clusters).
+TEST(HybridBed, FrictionalSettlesLikeTdm3D) {
+  check_settling_bed<3>(kSanitized ? 200 : 1000, 8.0, 0.8, 0.5);
+}
+TEST(HybridBed, SettlesLikeTdm3D) { check_settling_bed<3>(kSanitized ? 200 : 1000, 8.0, 0.8); }
 
 }  // namespace
 }  // namespace matep

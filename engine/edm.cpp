@@ -1230,6 +1230,7 @@ class EdmEngine {
     // An awake particle within the skin of a sleeping one wakes its cluster (rest rule); the
     // woken particles need entries too, so the build starts again.
     bool woke = false;
+    if (asleep_ > 0)
     for (const int i : soft_) {
       for_neighbours(i, [&](int j, const Vec<D>& shift) {
         if (mode_[j] != kAsleep) return;

@@ -406,6 +406,21 @@ inline double normal_force(const SoftContact& c, double delta, double delta_dot)
   return (c.clip && f < 0.0) ? 0.0 : f;
 }
 
+// Energy stored in a contact at overlap delta with tangential spring xi: k_n delta^2/2 (linear) or
+// (2/5) k_n delta^(5/2) (Hertz, viscoelastic: F = k_n delta^(3/2)), plus k_t |xi|^2/2 with the
+// tangential stiffness at this overlap (k_t sqrt(delta) for the Hertzian laws).
+template <int D>
+inline double stored_energy(const SoftContact& c, double delta, const Vec<D>& xi) {
+  double u, kt = c.kt;
+  if (c.normal == NormalLaw::Linear) {
+    u = 0.5 * c.kn * delta * delta;
+  } else {
+    u = 0.4 * c.kn * delta * delta * std::sqrt(delta);
+    kt *= std::sqrt(delta);
+  }
+  return u + 0.5 * kt * xi.squaredNorm();
+}
+
 // ---------------------------------------------------------------------------------------------
 // One contact: kinematics in, force out, history updated.
 

@@ -588,13 +588,7 @@ class EdmEngine {
     Hot<D>& a = hot_[i];
     Hot<D>& b = hot_[j];
     Vec<D> r = a.x - b.x;
-    for (int k = 0; k < D; ++k) {
-      if (!sys_.periodic[k]) continue;
-      if (r[k] > 0.5 * L_[k])
-        r[k] -= L_[k];
-      else if (r[k] < -0.5 * L_[k])
-        r[k] += L_[k];
-    }
+    min_image(r);
     const double dist = r.norm();
     const Vec<D> n = r / dist;
     const double u = (a.v - b.v).dot(n);
@@ -1067,6 +1061,7 @@ class EdmEngine {
     }
   }
 
+  // The periodic image of a separation vector nearest to zero.
   void min_image(Vec<D>& r) const {
     for (int k = 0; k < D; ++k) {
       if (!sys_.periodic[k]) continue;
@@ -1582,16 +1577,7 @@ class EdmEngine {
   // Elastic energy stored in the soft contacts (engine/tdm.cpp sample()).
   double soft_elastic_energy() const {
     double el = 0.0;
-    auto stored = [&](const SoftContact& c, double delta, const Vec<D>& xi) {
-      double u, kt = c.kt;
-      if (c.normal == NormalLaw::Linear) {
-        u = 0.5 * c.kn * delta * delta;
-      } else {
-        u = 0.4 * c.kn * delta * delta * std::sqrt(delta);
-        kt *= std::sqrt(delta);
-      }
-      return u + 0.5 * kt * xi.squaredNorm();
-    };
+    auto stored = [](const SoftContact& c, double delta, const Vec<D>& xi) { return stored_energy<D>(c, delta, xi); };
     for (const auto* list : {&pe_, &pe_sleep_})
     for (const auto& e : *list) {
       if (!e.touch) continue;
@@ -1819,11 +1805,7 @@ class EdmEngine {
     SoftStats& t = res.soft;
     t.steps = hstats_.substeps;
     t.dt = h_;
-    t.default_dt = plan_.default_dt;
-    t.max_stable_dt = plan_.max_stable_dt;
-    t.contact_time = plan_.contact_time;
-    t.rayleigh_time = plan_.rayleigh_time;
-    t.impact_speed = plan_.impact_speed;
+    record_plan(t, plan_);
     t.skin = skin_;
     t.rebuilds = hstats_.rebuilds;
     for (const auto& e : pe_) t.contacts += e.touch;

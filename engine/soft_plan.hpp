@@ -9,6 +9,7 @@
 #include <vector>
 
 #include "contact/soft.hpp"
+#include "engine/edm.hpp"
 #include "engine/system.hpp"
 
 namespace matep {
@@ -42,6 +43,16 @@ struct SoftPlan {
 // materials with different laws, ...). Walls whose material lacks elastic constants are rigid.
 template <int D>
 SoftPlan plan_soft(const System<D>& sys);
+
+// The plan's figures in a run's SoftStats (default and limiting steps, contact and Rayleigh times,
+// impact speed).
+inline void record_plan(SoftStats& s, const SoftPlan& plan) {
+  s.default_dt = plan.default_dt;
+  s.max_stable_dt = plan.max_stable_dt;
+  s.contact_time = plan.contact_time;
+  s.rayleigh_time = plan.rayleigh_time;
+  s.impact_speed = plan.impact_speed;
+}
 
 // The contact constants of one pair, for particles of radius Ri, Rj and mass mi, mj.
 SoftContact pair_contact(const SoftPlan& plan, int ma, double Ri, double mi, int mb, double Rj, double mj);

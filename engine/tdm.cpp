@@ -829,16 +829,7 @@ ThermoSample TdmEngine<D>::sample(double time) {
   // Elastic energy of the contacts and their virial sum r.F (the tangential force is normal to
   // r and adds nothing).
   double el = 0.0, vir = 0.0;
-  auto stored = [&](const SoftContact& c, double delta, const Vec<D>& xi) {
-    double u, kt = c.kt;
-    if (c.normal == NormalLaw::Linear) {
-      u = 0.5 * c.kn * delta * delta;  // F = k delta
-    } else {
-      u = 0.4 * c.kn * delta * delta * std::sqrt(delta);  // F = kn delta^3/2
-      kt *= std::sqrt(delta);
-    }
-    return u + 0.5 * kt * xi.squaredNorm();
-  };
+  auto stored = [](const SoftContact& c, double delta, const Vec<D>& xi) { return stored_energy<D>(c, delta, xi); };
   for (std::size_t i = 0; i < N_; ++i)
     for (std::uint32_t e = off_[i]; e < off_[i + 1]; ++e) {
       const std::uint32_t j = nb_[e];
@@ -1008,11 +999,7 @@ RunResult<D> TdmEngine<D>::run() {
   SoftStats& s = res.soft;
   s.steps = steps_;
   s.dt = dt_;
-  s.default_dt = plan_.default_dt;
-  s.max_stable_dt = plan_.max_stable_dt;
-  s.contact_time = plan_.contact_time;
-  s.rayleigh_time = plan_.rayleigh_time;
-  s.impact_speed = plan_.impact_speed;
+  record_plan(s, plan_);
   s.skin = skin_;
   s.rebuilds = rebuilds_;
   for (auto f : touch_) s.contacts += f;

@@ -873,8 +873,10 @@ class EdmEngine {
     // The skin must cover the largest relative approach in one substep (two particles at the
     // largest expected impact speed each): no contact can begin between two capture checks.
     skin_ = std::max(skin_, 4.0 * plan_.impact_speed * h_);
-    // The Verlet list of the soft set and the capture share the skin (a wider list skin saved
-    // rebuilds in the pour but widened the EDM cells: 10 % slower hard predictions in a gas).
+    // The Verlet list of the soft set takes the TDM engine's skin, 0.1 d (a wider one saved
+    // rebuilds in the pour but widened the EDM cells, whose width is the list's cut-off: 10 %
+    // slower hard predictions in a gas); the capture skin is smaller (default 0.01 d): a capture
+    // skin of 0.1 d spread the soft set through every gas denser than phi ~ 0.2.
     lskin_ = std::max(skin_, kListSkin * dmin);
     kstab_ = hs.stability;
     hyst_ = hs.hysteresis > 0.0 ? hs.hysteresis : 10.0 * kstab_ * plan_.contact_time;
@@ -1460,7 +1462,7 @@ class EdmEngine {
       min_image(dx);
       const double Rs = hot_[i].R + hot_[j].R;
       const double r2 = dx.squaredNorm();
-      const double cut = Rs + skin_;
+      const double cut = Rs + skin_;  // release needs no particle within the capture skin
       if (r2 < cut * cut) near_[i] = near_[j] = 1;
       if (r2 >= Rs * Rs) {
         if (e.touch) {

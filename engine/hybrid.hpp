@@ -32,7 +32,7 @@ struct HybridSettings {
   double stability = 2.0;   // k: a collision within k t_c of the previous one turns the cluster soft
   int repeats = 3;          // ... when it is the repeats-th such collision in a row
   double hysteresis = 0.0;  // contact-free time before release; 0 = 10 k t_c (of the plan's t_c)
-  double skin = 0.1;        // capture distance, as a fraction of the smallest diameter
+  double skin = 0.01;       // capture distance, as a fraction of the smallest diameter
   double cost_ratio = 10.0; // cost of one EDM collision per particle / cost of one TDM particle-step
   double rest_speed = 0.0;  // sleeping threshold [m/s]; 0 = no sleeping
   double rest_time = 0.0;   // how long a cluster must stay below rest_speed; 0 = 20 t_c

@@ -272,3 +272,36 @@ TEST(Cli, VtkSnapshotsAndTheirTimeSeriesReadBack) {
   }
   fs::remove_all(d);
 }
+
+// A hybrid run's snapshots carry each particle's mode and soft cluster: the vibrated bed has soft
+// disks (mode 1) in clusters (ids >= 0) and hard ones (mode 0, cluster -1), matching thermo.csv's
+// soft count at the same time.
+TEST(Cli, HybridSnapshotsCarryModeAndCluster) {
+  const fs::path d = tmpdir("hybrid_vtk");
+  const Result r = sh("run " + kCases + "vibrated_bed.toml --set run.end_time=0.5 --set output.snapshot_interval=0.25 "
+                      "--set output.thermo_interval=0.25 --out " + d.string());
+  ASSERT_EQ(r.code, 0) << r.out;
+  const std::string vtp = slurp(d / "snapshots/snap_000002.vtp");
+  const auto mode = vtp_array(vtp, "mode"), cluster = vtp_array(vtp, "cluster");
+  ASSERT_EQ(mode.size(), 200u);
+  ASSERT_EQ(cluster.size(), 200u);
+  std::size_t soft = 0;
+  for (std::size_t i = 0; i < mode.size(); ++i) {
+    EXPECT_TRUE(mode[i] == 0.0 || mode[i] == 1.0 || mode[i] == 3.0) << i;
+    if (mode[i] != 0.0) {
+      ++soft;
+      EXPECT_GE(cluster[i], 0.0) << i;
+    } else {
+      EXPECT_EQ(cluster[i], -1.0) << i;
+    }
+  }
+  EXPECT_GT(soft, 0u);
+  EXPECT_LT(soft, 200u);
+  // thermo.csv's last row (t = 0.5) counts the same soft disks.
+  std::istringstream th(slurp(d / "thermo.csv"));
+  std::string line, last;
+  while (std::getline(th, line))
+    if (!line.empty()) last = line;
+  EXPECT_EQ(std::stoul(last.substr(last.rfind(',') + 1)), soft);
+  fs::remove_all(d);
+}

@@ -113,7 +113,7 @@ int cmd_run(const std::vector<std::string>& rest) {
       const double el = std::chrono::duration<double>(now - start).count();
       const double eta = frac > 0.0 ? el * (1.0 - frac) / frac : 0.0;
       fmt::print(stderr, "\r  t = {:.6g} ({:5.1f}%)  {:.3g} {}/s  ETA {:.0f} s   ", t, 100.0 * frac,
-                 events / std::max(el, 1e-9), scene.method == "edm" ? "events" : "steps", eta);
+                 events / std::max(el, 1e-9), scene.method == "tdm" ? "steps" : "events", eta);
     };
   }
   const matep::RunOutcome out = matep::run_scene(scene, dir, progress);

@@ -1313,7 +1313,8 @@ class EdmEngine {
 
   // One TDM substep at time t (README "Hybrid dynamics", "Substeps").
   void substep(double t) {
-    ++hstats_.substeps;
+    if ((++hstats_.substeps & 0x3ff) == 0)  // progress: events so far, substeps included
+      for (auto* o : observers_) o->on_progress(t, counts_.total() + hstats_.substeps);
     // 1. Drift the awake soft particles from t - h to t with the forces of t - h.
     const double h = h_;
     for (const int i : soft_) {

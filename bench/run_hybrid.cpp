@@ -17,6 +17,7 @@
 #include "engine/edm.hpp"
 #include "engine/hybrid.hpp"
 #include "engine/tdm.hpp"
+#include "io/run.hpp"
 #include "io/scene.hpp"
 
 using namespace matep;
@@ -35,19 +36,6 @@ struct KeCurve final : Observer<3> {
     ke.push_back(s.kinetic_energy);
   }
 };
-
-HybridSettings hybrid_of(const Scene& s) {
-  HybridSettings h;
-  h.dt = s.dt.value_or(0.0);
-  if (s.hybrid.stability) h.stability = *s.hybrid.stability;
-  if (s.hybrid.repeats) h.repeats = *s.hybrid.repeats;
-  if (s.hybrid.hysteresis) h.hysteresis = *s.hybrid.hysteresis;
-  if (s.hybrid.skin) h.skin = *s.hybrid.skin;
-  if (s.hybrid.cost_ratio) h.cost_ratio = *s.hybrid.cost_ratio;
-  if (s.hybrid.rest_speed) h.rest_speed = *s.hybrid.rest_speed;
-  if (s.hybrid.rest_time) h.rest_time = *s.hybrid.rest_time;
-  return h;
-}
 
 double bed_height(const RunResult<3>& r) {
   double z = 0.0;
@@ -100,7 +88,7 @@ temperature = 1.0
     std::uint64_t switches = 0, ce = 0, ch = 0;
     for (int k = 0; k < repeats; ++k) {
       const RunResult<3> re = run_edm<3>(sys, es, QueueKind::Calendar);
-      const RunResult<3> rh = run_hybrid<3>(sys, es, hybrid_of(scene));
+      const RunResult<3> rh = run_hybrid<3>(sys, es, hybrid_settings(scene));
       te.push_back(re.wall_seconds);
       th.push_back(rh.wall_seconds);
       ratio.push_back(rh.wall_seconds / re.wall_seconds);
@@ -128,7 +116,7 @@ temperature = 1.0
     for (int k = 0; k < repeats; ++k) {
       KeCurve ct, ch;
       const RunResult<3> rt = run_tdm<3>(sys, ts, {&ct});
-      const RunResult<3> rh = run_hybrid<3>(sys, es, hybrid_of(scene), {&ch});
+      const RunResult<3> rh = run_hybrid<3>(sys, es, hybrid_settings(scene), {&ch});
       tt.push_back(rt.wall_seconds);
       th.push_back(rh.wall_seconds);
       ratio.push_back(rh.wall_seconds / rt.wall_seconds);

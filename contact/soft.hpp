@@ -406,6 +406,32 @@ inline double normal_force(const SoftContact& c, double delta, double delta_dot)
   return (c.clip && f < 0.0) ? 0.0 : f;
 }
 
+// First touch inside a step. A contact found overlapping by delta at t_{n+1}, approached at
+// speed u over the step, began tau = delta/u earlier (clamped to [0, h]); returns tau/h.
+// Returns -1 (no correction) when the pair is not approaching.
+inline double onset_fraction(double delta, double u, double h) {
+  if (!(u > 0.0)) return -1.0;
+  return delta < u * h ? delta / (u * h) : 1.0;
+}
+
+// Correction of the first step of a contact (DERIVED). Velocity Verlet applies the force sampled
+// at t_{n+1} over the window [t_{n+1} - h/2, t_{n+1} + h/2] (its two half kicks). A linear
+// dashpot's force jumps from 0 to gamma u at first touch, so the sampled impulse gamma u h
+// misses the true gamma u (tau + h/2) (for tau < h/2 the window starts before the touch; for
+// tau > h/2 the previous sample, taken before the touch, missed gamma u (tau - h/2)): the first
+// sample's dashpots are weighted by tau/h + 1/2, which makes the dissipated impulse exact to
+// first order and the collision's outcome second order in h. Hertz and viscoelastic dashpots
+// vanish at delta = 0 and need no weight. (The spring's kink at first touch is left alone: its
+// error mirrors the one at separation, so the two cancel on average; weighting only the first
+// step, as for the dashpot, makes an elastic gas drift.)
+template <NormalLaw Law>
+inline void at_onset(SoftContact& c, double x) {
+  if constexpr (Law == NormalLaw::Linear) {
+    c.gn *= x + 0.5;
+    c.gt *= x + 0.5;
+  }
+}
+
 // Energy stored in a contact at overlap delta with tangential spring xi: k_n delta^2/2 (linear) or
 // (2/5) k_n delta^(5/2) (Hertz, viscoelastic: F = k_n delta^(3/2)), plus k_t |xi|^2/2 with the
 // tangential stiffness at this overlap (k_t sqrt(delta) for the Hertzian laws).

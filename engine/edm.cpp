@@ -36,6 +36,16 @@ struct alignas(D == 3 ? 64 : 16) Hot {
   double R;      // radius
 };
 
+// The hybrid's substep (run.dt, or the plan's default); throws above the stability limit.
+double hybrid_substep(const SoftPlan& plan, const HybridSettings& hs) {
+  const double h = hs.dt > 0.0 ? hs.dt : plan.default_dt;
+  if (!(h < plan.max_stable_dt))
+    throw std::invalid_argument(fmt::format(
+        "run.dt: {} is above the stability limit {:.6g} of the stiffest contact ({}); the default step is {:.6g}",
+        h, plan.max_stable_dt, plan.limiting, plan.default_dt));
+  return h;
+}
+
 // Hybrid = true adds the soft set of the hybrid engine (engine/hybrid.hpp): particle modes, TDM
 // substeps as events of the same queue and the switching rule. Hybrid = false compiles it out.
 template <int D, class Queue, bool Hybrid = false>
@@ -860,11 +870,7 @@ class EdmEngine {
   void hybrid_setup(const HybridSettings& hs) {
     hset_ = hs;
     plan_ = plan_soft<D>(sys_);
-    h_ = hs.dt > 0.0 ? hs.dt : plan_.default_dt;
-    if (!(h_ < plan_.max_stable_dt))
-      throw std::invalid_argument(fmt::format(
-          "hybrid.dt: {} is above the stability limit {:.6g} of the stiffest contact ({}); the default step is {:.6g}",
-          h_, plan_.max_stable_dt, plan_.limiting, plan_.default_dt));
+    h_ = hybrid_substep(plan_, hs);
     hdt_ = 0.5 * h_;
     rot_ = plan_.friction;
     double dmin = kNever;
@@ -1218,12 +1224,16 @@ class EdmEngine {
     Springs& wsprings = wsprings_;
     springs.clear();
     wsprings.clear();
-    for (const auto& e : pe_)
-      if (e.touch && mode_[e.i] == kSoft && mode_[e.j] == kSoft) springs.push_back({key(e.i, e.j), e.xi});
-    for (const auto& e : we_)
-      if (e.touch && mode_[e.i] == kSoft) wsprings.push_back({key(e.i, e.w), e.xi});
-    pe_.clear();
-    we_.clear();
+    // Moves the touching contacts' springs out of pe_/we_ (which are then empty).
+    auto collect = [&] {
+      for (const auto& e : pe_)
+        if (e.touch && mode_[e.i] == kSoft && mode_[e.j] == kSoft) springs.push_back({key(e.i, e.j), e.xi});
+      for (const auto& e : we_)
+        if (e.touch && mode_[e.i] == kSoft) wsprings.push_back({key(e.i, e.w), e.xi});
+      pe_.clear();
+      we_.clear();
+    };
+    collect();
     // An awake particle within the skin of a sleeping one wakes its cluster (rest rule); the
     // woken particles need entries too, so the build starts again.
     bool woke = false;
@@ -1235,14 +1245,7 @@ class EdmEngine {
         if ((hot_[i].x - hot_[j].x - shift).squaredNorm() < cut * cut) woke |= wake(sleep_id_[j], t);
       });
     }
-    if (woke) {  // the woken clusters' entries are back in pe_/we_: keep their springs
-      for (const auto& e : pe_)
-        if (e.touch && mode_[e.i] == kSoft && mode_[e.j] == kSoft) springs.push_back({key(e.i, e.j), e.xi});
-      for (const auto& e : we_)
-        if (e.touch && mode_[e.i] == kSoft) wsprings.push_back({key(e.i, e.w), e.xi});
-      pe_.clear();
-      we_.clear();
-    }
+    if (woke) collect();  // the woken clusters' entries are back in pe_/we_: keep their springs
     auto by_key = [](const auto& a, const auto& b) { return a.first < b.first; };
     std::sort(springs.begin(), springs.end(), by_key);
     std::sort(wsprings.begin(), wsprings.end(), by_key);
@@ -1433,7 +1436,7 @@ class EdmEngine {
   // Contact forces of the soft set at time t (engine/tdm.cpp's pair_range and wall_contact_force,
   // with the law chosen at run time): dashpots at the predicted velocity v(t - h/2) + h/2 a(t - h),
   // the spring grown by h times the half-step contact velocity, the first-step weight of a contact
-  // that begins inside the step (onset_fraction, at_onset there).
+  // that begins inside the step (onset_fraction, at_onset in contact/soft.hpp).
   void soft_forces(double t) {
     for (std::size_t w = 0; w < sys_.walls.size(); ++w) {
       const auto& W = sys_.walls[w];
@@ -1481,11 +1484,10 @@ class EdmEngine {
       if (!e.touch) {
         e.touch = 1;
         ++hstats_soft_begun_;
-        onset = hyb_onset_fraction(delta, -(vh_[i] - vh_[j]).dot(n), h);
+        onset = onset_fraction(delta, -(vh_[i] - vh_[j]).dot(n), h);
         if (onset >= 0.0 && Law == NormalLaw::Linear) {
           local = *cp;
-          local.gn *= onset + 0.5;
-          local.gt *= onset + 0.5;
+          at_onset<Law>(local, onset);
           cp = &local;
         }
       }
@@ -1542,11 +1544,8 @@ class EdmEngine {
       if (!e.touch) {
         e.touch = 1;
         ++hstats_soft_begun_;
-        onset = hyb_onset_fraction(delta, -(vh_[i] - now.uh).dot(n), h);
-        if (onset >= 0.0 && Law == NormalLaw::Linear) {
-          c.gn *= onset + 0.5;
-          c.gt *= onset + 0.5;
-        }
+        onset = onset_fraction(delta, -(vh_[i] - now.uh).dot(n), h);
+        if (onset >= 0.0) at_onset<Law>(c, onset);
       }
       touching_[i] = 1;
       const Vec<D> vi = vh_[i] + hdt * acc_[i] - now.u;
@@ -1568,13 +1567,6 @@ class EdmEngine {
       }
     }
     virial_ += virial * h;  // impulse times distance over the substep, as the hard collisions
-  }
-
-  // A contact found overlapping by delta, approached at speed u over the step, began delta/u
-  // earlier (engine/tdm.cpp onset_fraction).
-  static double hyb_onset_fraction(double delta, double u, double h) {
-    if (!(u > 0.0)) return -1.0;
-    return delta < u * h ? delta / (u * h) : 1.0;
   }
 
   // Elastic energy stored in the soft contacts (engine/tdm.cpp sample()).
@@ -1922,11 +1914,7 @@ RunResult<D> run_edm(System<D> system, const EdmSettings& settings, QueueKind qu
 template <int D>
 SoftPlan hybrid_preflight(const System<D>& system, const HybridSettings& settings) {
   SoftPlan plan = plan_soft<D>(system);
-  const double h = settings.dt > 0.0 ? settings.dt : plan.default_dt;
-  if (!(h < plan.max_stable_dt))
-    throw std::invalid_argument(fmt::format(
-        "hybrid.dt: {} is above the stability limit {:.6g} of the stiffest contact ({}); the default step is {:.6g}",
-        h, plan.max_stable_dt, plan.limiting, plan.default_dt));
+  hybrid_substep(plan, settings);
   return plan;
 }
 

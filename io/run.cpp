@@ -39,6 +39,8 @@ TdmSettings tdm_settings(const Scene& s) {
   return t;
 }
 
+}  // namespace
+
 HybridSettings hybrid_settings(const Scene& s) {
   HybridSettings h;
   h.dt = s.dt.value_or(0.0);
@@ -53,20 +55,14 @@ HybridSettings hybrid_settings(const Scene& s) {
   return h;
 }
 
+namespace {
+
 // The soft-sphere checks of the engine, reported as scene errors (file: key: message). A hybrid
 // run names its substep run.dt like a TDM run.
 template <int D>
 SoftPlan soft_preflight(const Scene& scene, const System<D>& sys) {
   try {
-    if (scene.method == "hybrid") {
-      try {
-        return hybrid_preflight<D>(sys, hybrid_settings(scene));
-      } catch (const std::invalid_argument& e) {
-        std::string m = e.what();
-        if (m.rfind("hybrid.dt", 0) == 0) m.replace(0, 9, "run.dt");
-        throw std::invalid_argument(m);
-      }
-    }
+    if (scene.method == "hybrid") return hybrid_preflight<D>(sys, hybrid_settings(scene));
     return tdm_preflight<D>(sys, tdm_settings(scene));
   } catch (const std::invalid_argument& e) {
     throw SceneError(fmt::format("{}: {}", scene.path, e.what()));

@@ -4,6 +4,7 @@
 #include <functional>
 #include <string>
 
+#include "engine/hybrid.hpp"
 #include "io/scene.hpp"
 
 namespace matep {
@@ -20,6 +21,9 @@ struct RunOutcome {
   // Hybrid: soft particle-steps, switches and the soft particles at the end.
   std::uint64_t soft_particle_steps = 0, to_soft = 0, to_hard = 0, soft_at_end = 0, slept = 0;
 };
+
+// The hybrid engine's settings of a scene (run.dt and the [hybrid] table).
+HybridSettings hybrid_settings(const Scene& scene);
 
 // Progress callback: simulated time, fraction done, events (EDM) or steps (TDM) so far.
 using ProgressFn = std::function<void(double time, double fraction, std::uint64_t events)>;

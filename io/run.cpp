@@ -230,7 +230,7 @@ std::string describe(const Scene& scene, const System<D>& sys) {
         s += "\n";
       }
     }
-  } else if (scene.method == "tdm" || scene.method == "hybrid") {
+  } else {  // "tdm" or "hybrid" (the scene reader accepts no other method)
     if (scene.method == "tdm")
       s += fmt::format(" (time-driven soft {}, velocity Verlet)\n", D == 3 ? "spheres" : "disks");
     else
@@ -265,8 +265,6 @@ std::string describe(const Scene& scene, const System<D>& sys) {
                        h.rest_speed > 0.0 ? fmt::format("; quiet clusters (rms speed < {} m/s) sleep", h.rest_speed)
                                           : std::string());
     }
-  } else {
-    s += " (not available in this version)\n";
   }
   std::string per;
   for (int k = 0; k < D; ++k) per += sys.periodic[k] ? "yes " : "no ";

@@ -96,6 +96,7 @@ class EdmEngine {
     // Hybrid: cells at least one largest diameter plus the soft list's skin wide, so that the
     // cells around a particle hold every particle within that skin of it.
     build_cells(2.0 * rmax + (Hybrid ? lskin_ : 0.0));
+    if constexpr (Hybrid) sg_w_ = 2.0 * rmax + lskin_;
     if constexpr (Hybrid) hybrid_arrays();
   }
 
@@ -933,7 +934,19 @@ class EdmEngine {
     recent_.assign(N_, {-1, -1});
     rapid_.assign(N_, 0);
     mode_.assign(N_, kHard);
-    sleep_id_.assign(N_, -1);
+    if (sleeping_) {
+      fz_base_.assign(N_, Vec<D>::Zero());
+      fz_mix_.assign(N_, Vec<D>::Zero());
+      if (rot_) {
+        fz_tbase_.assign(N_, Spin<D>::Zero());
+        fz_tmix_.assign(N_, Spin<D>::Zero());
+      }
+      fz_scale_.assign(N_, 0.0);
+      fz_lost_.assign(N_, 0);
+      fz_cand_.assign(N_, 0);
+    }
+    watch_flag_.assign(N_, 0);
+    asleep_slot_.assign(N_, -1);
     iface_flag_.assign(N_, 0);
     iface_next_.assign(N_, 0.0);
     recent_t_.assign(N_, {-kNever, -kNever});
@@ -1155,23 +1168,14 @@ class EdmEngine {
     const Vec<D> xi = hot_[i].x;
     const double Ri = hot_[i].R;
     for_neighbours(i, [&](int j, const Vec<D>& shift) {
-      if (mode_[j] == kAsleep) {
-        const double cut = Ri + hot_[j].R + skin_;
-        if ((xi - hot_[j].x - shift).squaredNorm() < cut * cut) wake(sleep_id_[j], t);  // sets dirty_
-        return;
-      }
-      if (mode_[j] != kSoft) return;
+      if (mode_[j] != kSoft && mode_[j] != kAsleep) return;
       const double cut = Ri + hot_[j].R + lskin_;
       if ((xi - hot_[j].x - shift).squaredNorm() >= cut * cut) return;
       const int a = std::min(i, j), b = std::max(i, j);
       pe_.push_back({a, b, pair_contact_of(a, b), 0, Vec<D>::Zero()});
+      if (mode_[j] == kAsleep) watch(j);
     });
-    for (std::size_t w = 0; w < sys_.walls.size(); ++w) {
-      const auto& W = sys_.walls[w];
-      const double reach = W.oscillating() ? 2.0 * std::abs(W.amplitude.dot(W.normal)) : 0.0;
-      if ((xi - W.position(t)).dot(W.normal) - Ri < lskin_ + reach)
-        we_.push_back({i, static_cast<int>(w), wall_contact_of(static_cast<int>(w), i), 0, Vec<D>::Zero()});
-    }
+    add_walls_only(i, t);
   }
 
   // Index of the contact constants of a pair (a wall) in ctab_, computed once per combination of
@@ -1217,52 +1221,45 @@ class EdmEngine {
     return it != s.end() && it->first == k ? &it->second : nullptr;
   }
 
-  // All entries anew, the springs of touching contacts carried over by particle ids.
+  // All entries anew, the springs of touching contacts carried over by particle ids: every pair
+  // (wall) within the list skin with an awake soft end. The touching pairs of two sleepers (walls
+  // of a sleeper) stay in pe_sleep_/we_sleep_ (rest rule: freeze_quiet, wake_loaded). Sleepers
+  // with an awake neighbour are watched.
   [[gnu::flatten]] void rebuild_entries(double t) {
     ++hstats_.rebuilds;
     Springs& springs = springs_;
     Springs& wsprings = wsprings_;
     springs.clear();
     wsprings.clear();
-    // Moves the touching contacts' springs out of pe_/we_ (which are then empty).
-    auto collect = [&] {
-      for (const auto& e : pe_)
-        if (e.touch && mode_[e.i] == kSoft && mode_[e.j] == kSoft) springs.push_back({key(e.i, e.j), e.xi});
-      for (const auto& e : we_)
-        if (e.touch && mode_[e.i] == kSoft) wsprings.push_back({key(e.i, e.w), e.xi});
-      pe_.clear();
-      we_.clear();
-    };
-    collect();
-    // An awake particle within the skin of a sleeping one wakes its cluster (rest rule); the
-    // woken particles need entries too, so the build starts again.
-    bool woke = false;
-    if (asleep_ > 0)
-    for (const int i : soft_) {
-      for_neighbours(i, [&](int j, const Vec<D>& shift) {
-        if (mode_[j] != kAsleep) return;
-        const double cut = hot_[i].R + hot_[j].R + skin_;
-        if ((hot_[i].x - hot_[j].x - shift).squaredNorm() < cut * cut) woke |= wake(sleep_id_[j], t);
-      });
-    }
-    if (woke) collect();  // the woken clusters' entries are back in pe_/we_: keep their springs
+    for (const auto& e : pe_)
+      if (e.touch) springs.push_back({key(e.i, e.j), e.xi});
+    for (const auto& e : we_)
+      if (e.touch) wsprings.push_back({key(e.i, e.w), e.xi});
+    pe_.clear();
+    we_.clear();
     auto by_key = [](const auto& a, const auto& b) { return a.first < b.first; };
     std::sort(springs.begin(), springs.end(), by_key);
     std::sort(wsprings.begin(), wsprings.end(), by_key);
+    for (const int j : watched_) watch_flag_[j] = 0;
+    watched_.clear();
+    soft_grid_build();
     for (const int i : soft_) {
       disp_[i].setZero();
       const Vec<D> xi = hot_[i].x;
       const double Ri = hot_[i].R;
-      for_neighbours(i, [&](int j, const Vec<D>& shift) {
-        if (j < i || mode_[j] != kSoft) return;
+      soft_grid_neighbours(i, [&](int j, const Vec<D>& shift) {
+        const std::uint8_t m = mode_[j];
+        if (!((m == kSoft && j > i) || m == kAsleep)) return;
         const double cut = Ri + hot_[j].R + lskin_;
         if ((xi - hot_[j].x - shift).squaredNorm() >= cut * cut) return;
-        PairEntry e{i, j, pair_contact_of(i, j), 0, Vec<D>::Zero()};
-        if (const Vec<D>* x = find_spring(springs, key(i, j))) {
+        const int a = std::min(i, j), b = std::max(i, j);
+        PairEntry e{a, b, pair_contact_of(a, b), 0, Vec<D>::Zero()};
+        if (const Vec<D>* x = find_spring(springs, key(a, b))) {
           e.touch = 1;
           e.xi = *x;
         }
         pe_.push_back(e);
+        if (m == kAsleep) watch(j);
       });
       const std::size_t w0 = we_.size();
       add_walls_only(i, t);
@@ -1274,15 +1271,150 @@ class EdmEngine {
     }
     dirty_ = false;
   }
-  void add_walls_only(int i, double t) {
-    const Vec<D> xi = hot_[i].x;
-    const double Ri = hot_[i].R;
-    for (std::size_t w = 0; w < sys_.walls.size(); ++w) {
-      const auto& W = sys_.walls[w];
-      const double reach = W.oscillating() ? 2.0 * std::abs(W.amplitude.dot(W.normal)) : 0.0;
-      if ((xi - W.position(t)).dot(W.normal) - Ri < lskin_ + reach)
-        we_.push_back({i, static_cast<int>(w), wall_contact_of(static_cast<int>(w), i), 0, Vec<D>::Zero()});
+
+  // The neighbour search of the list builds: the awake soft particles and the sleepers near them,
+  // counting-sorted into cells of width 2 rmax + lskin over the awake particles' bounding box
+  // widened by one cell (the whole axis if periodic). The EDM cells are coarser where the domain
+  // is mostly empty (a tall pour: their count is capped at 2 N).
+  void soft_grid_build() {
+    Vec<D> lo = Vec<D>::Constant(kNever), hi = Vec<D>::Constant(-kNever);
+    for (const int i : soft_) {
+      lo = lo.cwiseMin(hot_[i].x);
+      hi = hi.cwiseMax(hot_[i].x);
     }
+    std::size_t cells = 1;
+    const double w = sg_w_;
+    for (int k = 0; k < D; ++k) {
+      if (sys_.periodic[k]) {
+        lo[k] = lo_[k];
+        hi[k] = hi_[k];
+      } else {
+        lo[k] -= w;
+        hi[k] += w;
+      }
+      sg_n_[k] = std::max(1, static_cast<int>(std::min(1e6, std::floor((hi[k] - lo[k]) / w))));
+    }
+    // At most about four cells per participant: coarsen uniformly (periodic axes keep three).
+    const double cap = 4.0 * static_cast<double>(soft_.size() + asleep_list_.size()) + 64.0;
+    for (;;) {
+      double total = 1.0;
+      for (int k = 0; k < D; ++k) total *= sg_n_[k];
+      if (total <= cap) break;
+      for (int k = 0; k < D; ++k) sg_n_[k] = std::max(sys_.periodic[k] ? 3 : 1, static_cast<int>(sg_n_[k] * 0.8));
+    }
+    for (int k = 0; k < D; ++k) {
+      sg_lo_[k] = lo[k];
+      sg_cw_[k] = (hi[k] - lo[k]) / sg_n_[k];
+      sg_stride_[k] = k == 0 ? 1 : sg_stride_[k - 1] * sg_n_[k - 1];
+      cells *= static_cast<std::size_t>(sg_n_[k]);
+    }
+    sg_start_.assign(cells + 1, 0);
+    sg_part_.clear();
+    sg_cell_.clear();
+    auto place = [&](int i) {
+      int l = 0;
+      for (int k = 0; k < D; ++k) {
+        const double u = (hot_[i].x[k] - sg_lo_[k]) / sg_cw_[k];
+        if (!sys_.periodic[k] && !(u >= 0.0 && u < sg_n_[k])) return;  // out of reach
+        l += std::clamp(static_cast<int>(u), 0, sg_n_[k] - 1) * sg_stride_[k];
+      }
+      sg_part_.push_back(i);
+      sg_cell_.push_back(l);
+      ++sg_start_[static_cast<std::size_t>(l) + 1];
+    };
+    for (const int i : soft_) place(i);
+    for (const int i : asleep_list_) place(i);
+    for (std::size_t c = 0; c < cells; ++c) sg_start_[c + 1] += sg_start_[c];
+    sg_items_.resize(sg_part_.size());
+    sg_fill_.assign(sg_start_.begin(), sg_start_.end() - 1);
+    for (std::size_t p = 0; p < sg_part_.size(); ++p) sg_items_[sg_fill_[sg_cell_[p]]++] = sg_part_[p];
+  }
+  // f(j, shift) for every participant j != i in the cells around awake i (shift: the image of j
+  // next to i, as for_neighbours).
+  template <class F>
+  void soft_grid_neighbours(int i, F&& f) const {
+    std::array<int, 3> nk[D];
+    std::array<double, 3> sk[D];
+    std::array<int, D> count{};
+    for (int k = 0; k < D; ++k) {
+      const int c = std::clamp(static_cast<int>((hot_[i].x[k] - sg_lo_[k]) / sg_cw_[k]), 0, sg_n_[k] - 1);
+      for (int o = -1; o <= 1; ++o) {
+        int cc = c + o;
+        double sh = 0.0;
+        if (cc < 0 || cc >= sg_n_[k]) {
+          if (!sys_.periodic[k]) continue;
+          sh = cc < 0 ? -L_[k] : L_[k];
+          cc = cc < 0 ? cc + sg_n_[k] : cc - sg_n_[k];
+        }
+        nk[k][count[k]] = cc * sg_stride_[k];
+        sk[k][count[k]] = sh;
+        ++count[k];
+      }
+    }
+    auto cell = [&](int l, const Vec<D>& shift) {
+      for (int p = sg_start_[l], e = sg_start_[l + 1]; p < e; ++p)
+        if (sg_items_[p] != i) f(sg_items_[p], shift);
+    };
+    if constexpr (D == 2) {
+      for (int a = 0; a < count[0]; ++a)
+        for (int b = 0; b < count[1]; ++b) cell(nk[0][a] + nk[1][b], Vec<D>(sk[0][a], sk[1][b]));
+    } else {
+      for (int a = 0; a < count[0]; ++a)
+        for (int b = 0; b < count[1]; ++b)
+          for (int e = 0; e < count[2]; ++e)
+            cell(nk[0][a] + nk[1][b] + nk[2][e], Vec<D>(sk[0][a], sk[1][b], sk[2][e]));
+    }
+  }
+
+  void watch(int j) {
+    if (watch_flag_[j]) return;
+    watch_flag_[j] = 1;
+    watched_.push_back(j);
+  }
+
+  // Elastic force on e.i (spring and tangential spring, no dashpots: both ends at rest) and the
+  // torques on both ends; zero when they no longer touch.
+  Vec<D> static_pair_force(const PairEntry& e, Spin<D>& ti, Spin<D>& tj) const {
+    ti = Spin<D>::Zero();
+    tj = Spin<D>::Zero();
+    Vec<D> dx = hot_[e.i].x - hot_[e.j].x;
+    min_image(dx);
+    const double Rs = hot_[e.i].R + hot_[e.j].R, r = dx.norm();
+    if (!(r < Rs)) return Vec<D>::Zero();
+    ContactKinematics<D> k;
+    k.delta = Rs - r;
+    k.n = dx / r;
+    ContactHistory<D> hist{e.xi};
+    const ContactForce<D> cf = soft_contact_force(ctab_[e.c], k, hist);
+    if (rot_) {
+      const Spin<D> m = lever_moment<D>(k.n, cf.tangential);
+      ti = -pair_lever_arm(hot_[e.i].R, k.delta) * m;
+      tj = -pair_lever_arm(hot_[e.j].R, k.delta) * m;
+    }
+    return cf.force;
+  }
+  Vec<D> static_wall_force(const WallEntry& e, double t, Spin<D>& ti) const {
+    ti = Spin<D>::Zero();
+    const auto& W = sys_.walls[e.w];
+    ContactKinematics<D> k;
+    k.delta = hot_[e.i].R - (hot_[e.i].x - W.position(t)).dot(W.normal);
+    if (!(k.delta > 0.0)) return Vec<D>::Zero();
+    k.n = W.normal;
+    ContactHistory<D> hist{e.xi};
+    const ContactForce<D> cf = soft_contact_force(ctab_[e.c], k, hist);
+    if (rot_) ti = contact_torque<D>(k.n, cf.tangential, wall_lever_arm(hot_[e.i].R, k.delta));
+    return cf.force;
+  }
+  void add_walls_only(int i, double t) {
+    for (std::size_t w = 0; w < sys_.walls.size(); ++w)
+      if (wall_in_reach(i, static_cast<int>(w), t))
+        we_.push_back({i, static_cast<int>(w), wall_contact_of(static_cast<int>(w), i), 0, Vec<D>::Zero()});
+  }
+  // Whether wall w is within the list skin of i (an oscillating wall: plus its stroke).
+  bool wall_in_reach(int i, int w, double t) const {
+    const auto& W = sys_.walls[w];
+    const double reach = W.oscillating() ? 2.0 * std::abs(W.amplitude.dot(W.normal)) : 0.0;
+    return (hot_[i].x - W.position(t)).dot(W.normal) - hot_[i].R < lskin_ + reach;
   }
 
   // Moves soft i into its cell after a substep (periodic wrap; escape through an open face).
@@ -1348,6 +1480,7 @@ class EdmEngine {
     // 3. Entries, 4. forces at t.
     if (dirty_) rebuild_entries(t);
     soft_forces(t);
+    if (asleep_ > 0 && !watched_.empty()) wake_loaded(t);
     // 5. Full-step velocities; release and rest.
     double vmax2 = 0.0;
     for (std::size_t s = 0; s < soft_.size();) {
@@ -1368,7 +1501,7 @@ class EdmEngine {
     vsoft_max_ = std::sqrt(vmax2);
     if (sleeping_ && ++since_sleep_check_ >= sleep_every_) {
       since_sleep_check_ = 0;
-      sleep_quiet_clusters();
+      freeze_quiet(t);
     }
     hstats_.max_soft = std::max<std::uint64_t>(hstats_.max_soft, soft_.size() + asleep_);
     // 6. The next substep while anything is soft, pending or next to a soft particle.
@@ -1407,7 +1540,6 @@ class EdmEngine {
         const double d2 = (xi - hot_[j].x - shift).squaredNorm();
         if (d2 < cut * cut) {
           in = true;
-          if (m == kAsleep) wake(sleep_id_[j], t);
         } else {
           gmin = std::min(gmin, std::sqrt(d2) - cut);
         }
@@ -1460,6 +1592,7 @@ class EdmEngine {
     const double h = h_, hdt = hdt_;
     double virial = 0.0;
     const SoftContact* const C = ctab_.data();
+    const bool any_asleep = asleep_ > 0;
     for (auto& e : pe_) {
       const int i = e.i, j = e.j;
       Vec<D> dx = hot_[i].x - hot_[j].x;
@@ -1472,6 +1605,11 @@ class EdmEngine {
         if (e.touch) {
           e.touch = 0;
           e.xi.setZero();
+          // A sleeper that loses a contact wakes (its support may be gone).
+          if (any_asleep) {
+            if (mode_[i] == kAsleep) fz_lost_[i] = 1;
+            if (mode_[j] == kAsleep) fz_lost_[j] = 1;
+          }
         }
         continue;
       }
@@ -1495,6 +1633,17 @@ class EdmEngine {
       touching_[i] = touching_[j] = 1;
       const Vec<D> vpi = vh_[i] + hdt * acc_[i], vpj = vh_[j] + hdt * acc_[j];
       Vec<D> F;
+      // A sleeper (rest rule) is pushed by the springs only: its wake test compares the elastic
+      // load of its awake neighbours with their share at sleep (wake_loaded).
+      const bool mixed = any_asleep && (mode_[i] == kAsleep || mode_[j] == kAsleep);
+      if (mixed) {  // a sleeper touched by a grain moving faster than rest_speed wakes
+        const int a = mode_[i] == kAsleep ? j : i;
+        double s2 = vh_[a].squaredNorm();
+        if constexpr (Rot) s2 += wh_[a].squaredNorm() * hot_[a].R * hot_[a].R;
+        if (s2 > rest_speed2_) fz_lost_[a == i ? j : i] = 1;
+      }
+      Vec<D> Fel;
+      Spin<D> mel = Spin<D>::Zero();
       if constexpr (!Rot) {
         const double vn = (vpi - vpj).dot(n);
         double fn;
@@ -1506,6 +1655,7 @@ class EdmEngine {
         }
         if (c.clip && fn < 0.0) fn = 0.0;
         F = fn * n;
+        if (mixed) Fel = elastic_normal<Law>(c, delta) * n;
       } else {
         const double li = pair_lever_arm(hot_[i].R, delta), lj = pair_lever_arm(hot_[j].R, delta);
         ContactKinematics<D> k;
@@ -1519,11 +1669,25 @@ class EdmEngine {
         e.xi = hist.xi;
         F = cf.force;
         const Spin<D> m = lever_moment<D>(n, cf.tangential);
-        tq_[i] -= li * m;
-        tq_[j] -= lj * m;
+        if (mixed) {
+          const double kt = Law == NormalLaw::Linear ? c.kt : c.kt * std::sqrt(delta);
+          const Vec<D> ft = -kt * e.xi;
+          Fel = elastic_normal<Law>(c, delta) * n + ft;
+          mel = lever_moment<D>(n, ft);
+          tq_[i] -= li * (mode_[i] == kAsleep ? mel : m);
+          tq_[j] -= lj * (mode_[j] == kAsleep ? mel : m);
+        } else {
+          tq_[i] -= li * m;
+          tq_[j] -= lj * m;
+        }
       }
-      f_[i] += F;
-      f_[j] -= F;
+      if (mixed) {
+        f_[i] += mode_[i] == kAsleep ? Fel : F;
+        f_[j] -= mode_[j] == kAsleep ? Fel : F;
+      } else {
+        f_[i] += F;
+        f_[j] -= F;
+      }
       virial += F.dot(dx);
     }
     for (auto& e : we_) {
@@ -1567,6 +1731,24 @@ class EdmEngine {
       }
     }
     virial_ += virial * h;  // impulse times distance over the substep, as the hard collisions
+  }
+
+  // dF_n/d(delta) of the spring at overlap delta (k_n; 3/2 k_n sqrt(delta) for the Hertzian laws).
+  static double normal_stiffness(const SoftContact& c, double delta) {
+    if (!(delta > 0.0)) return 0.0;
+    return c.normal == NormalLaw::Linear ? c.kn : 1.5 * c.kn * std::sqrt(delta);
+  }
+  double pair_stiffness(const PairEntry& e) const {
+    Vec<D> dx = hot_[e.i].x - hot_[e.j].x;
+    min_image(dx);
+    return normal_stiffness(ctab_[e.c], hot_[e.i].R + hot_[e.j].R - dx.norm());
+  }
+
+  // The spring part of the normal force at overlap delta.
+  template <NormalLaw Law>
+  static double elastic_normal(const SoftContact& c, double delta) {
+    if constexpr (Law == NormalLaw::Linear) return c.kn * delta;
+    return c.kn * delta * std::sqrt(delta);
   }
 
   // Elastic energy stored in the soft contacts (engine/tdm.cpp sample()).
@@ -1636,152 +1818,246 @@ class EdmEngine {
     if (!pending_.empty()) start_clock(0.0);
   }
 
-  // ---- rest rule: sleeping clusters ----
+  // ---- rest rule: sleeping particles ----
+  //
+  // A sleeper i keeps, from the moment it fell asleep, its static net contact force and torque
+  // B_i (springs only: it was at rest) and the wake threshold W_i. Its contacts with sleepers and
+  // walls are frozen in pe_sleep_/we_sleep_ (constant: neither end moves); its contacts with awake
+  // particles are evaluated at every substep in pe_ (it is an immovable body for them), and their
+  // sum is compared with M_i, the part of B_i they carried: M_i = B_i - (the frozen part), updated
+  // whenever a contact moves between the two lists. The net force on i is then
+  // f_mixed + B_i - M_i, and i wakes when it differs from B_i by more than W_i.
 
-  // Puts to sleep every cluster of awake soft particles (connected by contacts and gaps below the
-  // skin) that has been quiet at the last four checks (a quarter rest_time apart): its rms speed
-  // (including the surface speed of spins, R w) below rest_speed and no member faster than
-  // 10 rest_speed; and that touches no oscillating wall.
-  void sleep_quiet_clusters() {
-    const int n = static_cast<int>(soft_.size());
-    if (n == 0) return;
-    std::vector<int> parent(n);
-    for (int k = 0; k < n; ++k) parent[k] = k;
-    auto find = [&](int a) {
-      while (parent[a] != a) a = parent[a] = parent[parent[a]];
-      return a;
-    };
-    // Clusters for the rest rule: linked by a contact or by a gap below the skin (a rattler next
-    // to a bed belongs to it: the bed sleeps with it or not at all).
-    for (const auto& e : pe_) {
-      bool link = e.touch;
-      if (!link) {
-        Vec<D> dx = hot_[e.i].x - hot_[e.j].x;
-        min_image(dx);
-        const double cut = hot_[e.i].R + hot_[e.j].R + skin_;
-        link = dx.squaredNorm() < cut * cut;
-      }
-      if (link) {
-        const int a = find(slot_[e.i]), b = find(slot_[e.j]);
-        if (a != b) parent[std::max(a, b)] = std::min(a, b);
-      }
-    }
-    std::vector<double> v2(n, 0.0), count(n, 0.0);
-    std::vector<std::uint8_t> ok(n, 1);
-    for (int k = 0; k < n; ++k) {
-      const int i = soft_[k], r = find(k);
+  // Puts to sleep every awake soft particle that has been quiet at the last four checks (a quarter
+  // rest_time apart: speed, with the surface speed of its spin R w, below rest_speed), is in
+  // static equilibrium (its contact springs and gravity cancel to within W_i), and has no
+  // oscillating wall within the list skin.
+  void freeze_quiet(double t) {
+    if (soft_.empty()) return;
+    for (const int i : soft_) {
       double s2 = hot_[i].v.squaredNorm();
       if (rot_) s2 += sys_.w[i].squaredNorm() * hot_[i].R * hot_[i].R;
-      v2[r] += s2;
-      count[r] += 1.0;
-      if (s2 > 100.0 * rest_speed2_) ok[r] = 0;
+      quiet_checks_[i] = s2 < rest_speed2_ ? quiet_checks_[i] + 1 : 0;
     }
-    for (int k = 0; k < n; ++k)
-      if (find(k) == k && v2[k] > rest_speed2_ * count[k]) ok[k] = 0;
-    // Quiet checks in a row, per particle (clusters change between checks).
-    for (int k = 0; k < n; ++k) {
-      const int i = soft_[k];
-      quiet_checks_[i] = ok[find(k)] ? quiet_checks_[i] + 1 : 0;
-    }
-    for (int k = 0; k < n; ++k)
-      if (quiet_checks_[soft_[k]] < 4) ok[find(k)] = 0;
     for (const auto& e : we_)
-      if (e.touch && sys_.walls[e.w].oscillating()) ok[find(slot_[e.i])] = 0;
-    std::vector<int> cid(n, -1);
+      if (sys_.walls[e.w].oscillating()) quiet_checks_[e.i] = 0;
     bool any = false;
-    for (int k = 0; k < n; ++k) {
-      const int r = find(k);
-      if (!ok[r]) continue;
-      if (cid[r] < 0) {
-        cid[r] = static_cast<int>(sleepers_.size());
-        sleepers_.emplace_back();
+    for (const int i : soft_) {
+      const bool c = quiet_checks_[i] >= 4;
+      fz_cand_[i] = c;
+      any |= c;
+      if (c) {
+        fz_base_[i].setZero();
+        fz_mix_[i].setZero();
+        if (rot_) {
+          fz_tbase_[i].setZero();
+          fz_tmix_[i].setZero();
+        }
+        fz_scale_[i] = 0.0;  // first the sum of its contact stiffnesses
       }
-      const int i = soft_[k];
-      sleepers_[cid[r]].push_back(i);
-      any = true;
     }
     if (!any) return;
-    for (int k = 0; k < n; ++k) {
-      const int r = find(k);
-      if (!ok[r]) continue;
-      const int i = soft_[k];
-      mode_[i] = kAsleep;
-      sleep_id_[i] = cid[r];
-      hot_[i].v.setZero();
-      if (rot_) sys_.w[i].setZero();
-      ++asleep_;
-      ++hstats_.slept;
-    }
-    // The soft list without the sleepers; their entries set aside with their springs.
-    std::size_t keep = 0;
-    for (std::size_t k = 0; k < soft_.size(); ++k)
-      if (mode_[soft_[k]] == kSoft) {
-        slot_[soft_[k]] = static_cast<int>(keep);
-        soft_[keep++] = soft_[k];
-      } else {
-        slot_[soft_[k]] = -1;
+    // 1. The static net contact force of each candidate and its mean contact force.
+    for (const auto& e : pe_) {
+      if (!e.touch || !(fz_cand_[e.i] || fz_cand_[e.j])) continue;
+      Spin<D> ti, tj;
+      const Vec<D> F = static_pair_force(e, ti, tj);
+      const double k_n = pair_stiffness(e);
+      for (const int k : {e.i, e.j}) {
+        if (!fz_cand_[k]) continue;
+        fz_base_[k] += k == e.i ? F : Vec<D>(-F);
+        if (rot_) fz_tbase_[k] += k == e.i ? ti : tj;
+        fz_scale_[k] += k_n;
       }
+    }
+    for (const auto& e : we_) {
+      if (!e.touch || !fz_cand_[e.i]) continue;
+      Spin<D> ti;
+      const Vec<D> F = static_wall_force(e, t, ti);
+      fz_base_[e.i] += F;
+      if (rot_) fz_tbase_[e.i] += ti;
+      const double delta = hot_[e.i].R - (hot_[e.i].x - sys_.walls[e.w].position(t)).dot(sys_.walls[e.w].normal);
+      fz_scale_[e.i] += normal_stiffness(ctab_[e.c], delta);
+    }
+    // 2. Candidates in equilibrium fall asleep.
+    std::size_t keep = 0;
+    const std::size_t n = soft_.size();
+    for (std::size_t k = 0; k < n; ++k) {
+      const int i = soft_[k];
+      if (fz_cand_[i]) {
+        fz_cand_[i] = 0;
+        const double m = mass(i);
+        // Wake threshold W = rest_speed sqrt(m k), k the sum of its contacts' normal stiffnesses:
+        // a load change below W stores less elastic energy, W^2/(2k), than the kinetic energy of
+        // a grain at rest_speed, m rest_speed^2/2 (motion the rule counts as rest).
+        fz_scale_[i] = std::sqrt(rest_speed2_ * m * fz_scale_[i]);
+        if ((fz_base_[i] + m * g_).squaredNorm() <= fz_scale_[i] * fz_scale_[i]) {
+          freeze(i);
+          fz_cand_[i] = 1;  // now: fell asleep at this check
+          fresh_.push_back(i);
+          continue;
+        }
+      }
+      slot_[i] = static_cast<int>(keep);
+      soft_[keep++] = i;
+    }
+    if (keep == n) return;
     soft_.resize(keep);
+    // 3. The new sleepers' entries: a pair of two sleepers is frozen (set aside if touching, with
+    // its static force leaving the mixed part of an older sleeper's balance); a pair with an awake
+    // particle stays, and its static force is the new sleeper's mixed part.
     std::size_t kp = 0;
     for (const auto& e : pe_) {
-      if (mode_[e.i] == kAsleep && mode_[e.j] == kAsleep) {
-        if (e.touch) pe_sleep_.push_back(e);
-      } else if (mode_[e.i] == kSoft && mode_[e.j] == kSoft) {
+      const bool ni = fz_cand_[e.i], nj = fz_cand_[e.j];
+      if (!ni && !nj) {
         pe_[kp++] = e;
+        continue;
       }
+      Spin<D> ti = Spin<D>::Zero(), tj = Spin<D>::Zero();
+      const Vec<D> F = e.touch ? static_pair_force(e, ti, tj) : Vec<D>::Zero();
+      const bool ai = mode_[e.i] == kAsleep, aj = mode_[e.j] == kAsleep;
+      if (ai && aj) {
+        if (!ni) {
+          fz_mix_[e.i] -= F;
+          if (rot_) fz_tmix_[e.i] -= ti;
+        }
+        if (!nj) {
+          fz_mix_[e.j] += F;
+          if (rot_) fz_tmix_[e.j] -= tj;
+        }
+        if (e.touch) pe_sleep_.push_back(e);
+        continue;
+      }
+      const int k = ni ? e.i : e.j;  // the new sleeper; the other end is awake
+      fz_mix_[k] += k == e.i ? F : Vec<D>(-F);
+      if (rot_) fz_tmix_[k] += k == e.i ? ti : tj;
+      watch(k);
+      pe_[kp++] = e;
     }
     pe_.resize(kp);
     std::size_t kw = 0;
     for (const auto& e : we_) {
-      if (mode_[e.i] == kAsleep) {
-        if (e.touch) we_sleep_.push_back(e);
-      } else {
+      if (!fz_cand_[e.i]) {
         we_[kw++] = e;
+      } else if (e.touch) {
+        we_sleep_.push_back(e);
       }
     }
     we_.resize(kw);
+    for (const int i : fresh_) fz_cand_[i] = 0;
+    fresh_.clear();
   }
 
-  // Wakes sleeping cluster c at substep time t: its particles rejoin the soft set at rest (v = 0,
-  // a = 0: they slept in equilibrium) with their contacts and springs. Returns whether it slept.
-  bool wake(int c, double t) {
-    if (c < 0 || sleepers_[c].empty()) return false;
-    for (const int i : sleepers_[c]) {
-      mode_[i] = kSoft;
-      sleep_id_[i] = -1;
-      slot_[i] = static_cast<int>(soft_.size());
-      soft_.push_back(i);
-      vh_[i].setZero();
-      acc_[i].setZero();
-      f_[i].setZero();
-      disp_[i].setZero();
-      if (rot_) {
-        wh_[i].setZero();
-        alpha_[i].setZero();
-        tq_[i].setZero();
+  void freeze(int i) {
+    mode_[i] = kAsleep;
+    slot_[i] = -1;
+    quiet_checks_[i] = 0;
+    hot_[i].v.setZero();
+    vh_[i].setZero();
+    acc_[i].setZero();
+    f_[i].setZero();
+    if (rot_) {
+      sys_.w[i].setZero();
+      wh_[i].setZero();
+      alpha_[i].setZero();
+      tq_[i].setZero();
+    }
+    ++asleep_;
+    ++hstats_.slept;
+    asleep_slot_[i] = static_cast<int>(asleep_list_.size());
+    asleep_list_.push_back(i);
+  }
+
+  // The wake test of the watched sleepers after the forces of substep t (f_, tq_ hold the forces
+  // of their awake neighbours). A sleeper whose net contact force has moved from its value at
+  // sleep by more than its threshold wakes, at rest, with that force and torque; its frozen
+  // contacts join pe_ (the sleepers among their other ends are watched from now on) and its
+  // sleeping neighbours within the list skin get entries.
+  void wake_loaded(double t) {
+    woken_.clear();
+    for (const int j : watched_) {
+      if (mode_[j] != kAsleep) continue;
+      touching_[j] = near_[j] = 0;
+      const Vec<D> dev = f_[j] - fz_mix_[j];
+      const bool lost = fz_lost_[j];
+      fz_lost_[j] = 0;
+      if (lost || dev.squaredNorm() > fz_scale_[j] * fz_scale_[j]) {
+        f_[j] = dev + fz_base_[j];
+        if (rot_) tq_[j] += fz_tbase_[j] - fz_tmix_[j];
+        mode_[j] = kSoft;
+        slot_[j] = static_cast<int>(soft_.size());
+        soft_.push_back(j);
+        disp_[j].setZero();
+        hot_[j].t = t;
+        last_contact_[j] = t;
+        --asleep_;
+        ++hstats_.woken;
+        woken_.push_back(j);
+        const int q = asleep_slot_[j];
+        asleep_list_[q] = asleep_list_.back();
+        asleep_slot_[asleep_list_[q]] = q;
+        asleep_list_.pop_back();
+        asleep_slot_[j] = -1;
+      } else {
+        f_[j].setZero();
+        if (rot_) tq_[j].setZero();
       }
-      hot_[i].t = t;
-      quiet_checks_[i] = 0;
-      last_contact_[i] = t;
-      --asleep_;
-      ++hstats_.woken;
     }
-    sleepers_[c].clear();
-    std::size_t k = 0;
-    for (const auto& e : pe_sleep_) {
-      if (mode_[e.i] == kSoft) pe_.push_back(e);  // both ends belong to the woken cluster
-      else pe_sleep_[k++] = e;
-    }
-    pe_sleep_.resize(k);
-    k = 0;
-    for (const auto& e : we_sleep_) {
-      if (mode_[e.i] == kSoft) we_.push_back(e);
-      else we_sleep_[k++] = e;
-    }
-    we_sleep_.resize(k);
-    dirty_ = true;
+    if (woken_.empty()) return;
     start_clock(t);
-    return true;
+    // Frozen contacts with a woken end join pe_; a sleeper at the other end gets them in its mixed
+    // part.
+    moved_.clear();
+    std::size_t ks = 0;
+    for (const auto& e : pe_sleep_) {
+      const bool ai = mode_[e.i] == kAsleep, aj = mode_[e.j] == kAsleep;
+      if (ai && aj) {
+        pe_sleep_[ks++] = e;
+        continue;
+      }
+      if (ai || aj) {
+        Spin<D> ti, tj;
+        const Vec<D> F = static_pair_force(e, ti, tj);
+        const int k = ai ? e.i : e.j;
+        fz_mix_[k] += k == e.i ? F : Vec<D>(-F);
+        if (rot_) fz_tmix_[k] += k == e.i ? ti : tj;
+        watch(k);
+      }
+      pe_.push_back(e);
+      moved_.push_back(key(e.i, e.j));
+    }
+    pe_sleep_.resize(ks);
+    std::size_t kw = 0;
+    moved_w_.clear();
+    for (const auto& e : we_sleep_) {
+      if (mode_[e.i] == kAsleep) {
+        we_sleep_[kw++] = e;
+      } else {
+        we_.push_back(e);
+        moved_w_.push_back(key(e.i, e.w));
+      }
+    }
+    we_sleep_.resize(kw);
+    std::sort(moved_w_.begin(), moved_w_.end());
+    // Sleeping neighbours within the list skin that it did not touch; walls it did not touch.
+    std::sort(moved_.begin(), moved_.end());
+    for (const int j : woken_) {
+      const Vec<D> xj = hot_[j].x;
+      const double Rj = hot_[j].R;
+      for_neighbours(j, [&](int k, const Vec<D>& shift) {
+        if (mode_[k] != kAsleep) return;
+        const double cut = Rj + hot_[k].R + lskin_;
+        if ((xj - hot_[k].x - shift).squaredNorm() >= cut * cut) return;
+        const int a = std::min(j, k), b = std::max(j, k);
+        if (std::binary_search(moved_.begin(), moved_.end(), key(a, b))) return;
+        pe_.push_back({a, b, pair_contact_of(a, b), 0, Vec<D>::Zero()});
+        watch(k);
+      });
+      for (std::size_t w = 0; w < sys_.walls.size(); ++w)
+        if (!std::binary_search(moved_w_.begin(), moved_w_.end(), key(j, static_cast<int>(w))) &&
+            wall_in_reach(j, static_cast<int>(w), t))
+          we_.push_back({j, static_cast<int>(w), wall_contact_of(static_cast<int>(w), j), 0, Vec<D>::Zero()});
+    }
   }
 
   void hybrid_result(RunResult<D>& res) {
@@ -1849,8 +2125,21 @@ class EdmEngine {
   bool sleeping_ = false;                 // rest rule on
   double rest_speed2_ = 0.0;
   std::uint64_t sleep_every_ = 1, since_sleep_check_ = 0;
-  std::vector<int> sleep_id_;             // sleeping cluster of a particle (-1: none)
-  std::vector<std::vector<int>> sleepers_;
+  // Sleepers (rest rule): static net contact force at sleep and wake threshold; for the watched
+  // ones (an awake neighbour in pe_), the constant force and torque of their sleeping contacts.
+  std::vector<Vec<D>> fz_base_, fz_mix_;
+  std::vector<Spin<D>> fz_tbase_, fz_tmix_;
+  std::vector<int> woken_;
+  std::vector<int> fresh_, asleep_list_, asleep_slot_;
+  // Soft grid (soft_grid_build).
+  double sg_w_ = 0.0;
+  std::array<int, D> sg_n_{}, sg_stride_{};
+  Vec<D> sg_lo_ = Vec<D>::Zero(), sg_cw_ = Vec<D>::Ones();
+  std::vector<int> sg_start_, sg_items_, sg_cell_, sg_part_, sg_fill_;
+  std::vector<std::uint64_t> moved_, moved_w_;
+  std::vector<double> fz_scale_;
+  std::vector<int> watched_;
+  std::vector<std::uint8_t> fz_cand_, fz_lost_, watch_flag_;
   struct WallNow {
     Vec<D> p, u, uh;
   };

@@ -1636,11 +1636,9 @@ class EdmEngine {
       // A sleeper (rest rule) is pushed by the springs only: its wake test compares the elastic
       // load of its awake neighbours with their share at sleep (wake_loaded).
       const bool mixed = any_asleep && (mode_[i] == kAsleep || mode_[j] == kAsleep);
-      if (mixed) {  // a sleeper touched by a grain moving faster than rest_speed wakes
-        const int a = mode_[i] == kAsleep ? j : i;
-        double s2 = vh_[a].squaredNorm();
-        if constexpr (Rot) s2 += wh_[a].squaredNorm() * hot_[a].R * hot_[a].R;
-        if (s2 > rest_speed2_) fz_lost_[a == i ? j : i] = 1;
+      if (mixed) {  // a sleeper that a touching grain approaches faster than rest_speed wakes
+        const double un = (vh_[i] - vh_[j]).dot(n);  // < 0: approaching (n points from j to i)
+        if (un < 0.0 && un * un > rest_speed2_) fz_lost_[mode_[i] == kAsleep ? i : j] = 1;
       }
       Vec<D> Fel;
       Spin<D> mel = Spin<D>::Zero();

@@ -12,9 +12,11 @@
 //    (the skin covers the largest relative approach in one substep, so no contact is missed);
 //  * release: a soft particle without contact for `hysteresis` and without a particle within the
 //    skin returns to EDM with its current velocity and spin;
-//  * rest: a soft cluster whose particles all stay slower than `rest_speed` for `rest_time` is
-//    put to sleep (not integrated; its contacts keep their springs) until a particle comes within
-//    the skin of one of its members.
+//  * rest: a soft grain that stays slower than `rest_speed` for `rest_time` and whose contact
+//    springs balance gravity falls asleep on its own: it is not integrated, its contacts with
+//    sleepers are frozen with their springs, and awake neighbours meet it as an immovable body.
+//    It wakes when a touching grain approaches it faster than rest_speed, when a contact opens, or
+//    when its elastic load changes by more than rest_speed sqrt(m k) (k: its contact stiffness).
 #pragma once
 
 #include <cstdint>
@@ -35,7 +37,7 @@ struct HybridSettings {
   double skin = 0.01;       // capture distance, as a fraction of the smallest diameter
   double cost_ratio = 10.0; // cost of one EDM collision per particle / cost of one TDM particle-step
   double rest_speed = 0.0;  // sleeping threshold [m/s]; 0 = no sleeping
-  double rest_time = 0.0;   // how long a cluster must stay below rest_speed; 0 = 20 t_c
+  double rest_time = 0.0;   // how long a grain must stay below rest_speed; 0 = 20 t_c
 };
 
 // The checks run_hybrid makes before it starts (the soft plan, the substep against the stability

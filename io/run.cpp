@@ -262,7 +262,7 @@ std::string describe(const Scene& scene, const System<D>& sys) {
                        "             diameter; release after {:.6g} s without contact{}\n",
                        h.repeats, h.stability, h.cost_ratio, h.skin,
                        h.hysteresis > 0.0 ? h.hysteresis : 10.0 * h.stability * plan.contact_time,
-                       h.rest_speed > 0.0 ? fmt::format("; quiet clusters (rms speed < {} m/s) sleep", h.rest_speed)
+                       h.rest_speed > 0.0 ? fmt::format("; quiet grains (speed < {} m/s) sleep", h.rest_speed)
                                           : std::string());
     }
   }

@@ -266,6 +266,11 @@ class EdmEngine {
     }
     head_.assign(ncells_total_, -1);
     next_.assign(N_, -1);
+    if constexpr (Hybrid) {
+      lin_.assign(N_, -1);
+      cblo_.assign(N_, Vec<D>::Constant(kNever));  // empty: the first substep relocates
+      cbhi_.assign(N_, Vec<D>::Constant(-kNever));
+    }
     for (int i = 0; i < N_; ++i) {
       for (int k = 0; k < D; ++k) {
         int c = static_cast<int>(std::floor((hot_[i].x[k] - lo_[k]) / cw_[k]));
@@ -281,6 +286,7 @@ class EdmEngine {
   }
   void cell_insert(int i) {
     const int l = linear(cold_[i].cell);
+    if constexpr (Hybrid) lin_[i] = l;
     next_[i] = head_[l];
     head_[l] = i;
   }
@@ -1115,6 +1121,8 @@ class EdmEngine {
     }
     mode_[i] = kSoft;
     iface_flag_[i] = 0;
+    cblo_[i].setConstant(kNever);  // relocate at the first substep (the box may be stale)
+    cbhi_[i].setConstant(-kNever);
     slot_[i] = static_cast<int>(soft_.size());
     soft_.push_back(i);
     // Ballistic until now: v(t - h/2) = v(t) - h/2 g and a(t - h) = g, so that the predicted
@@ -1420,7 +1428,11 @@ class EdmEngine {
   // Moves soft i into its cell after a substep (periodic wrap; escape through an open face).
   void relocate(int i, double t) {
     Hot<D>& h = hot_[i];
+    // Fast path: still inside the box of its cell (edge cells of closed axes: up to the escape
+    // limit; NaN fails the test).
+    if ((h.x.array() >= cblo_[i].array()).all() && (h.x.array() < cbhi_[i].array()).all()) return;
     std::array<int, D> c{};
+    int lin = 0;
     for (int k = 0; k < D; ++k) {
       if (sys_.periodic[k]) {
         if (h.x[k] >= hi_[k]) h.x[k] -= L_[k];
@@ -1437,8 +1449,15 @@ class EdmEngine {
       }
       const int cc = std::isfinite(h.x[k]) ? static_cast<int>(std::floor((h.x[k] - lo_[k]) / cw_[k])) : 0;
       c[k] = std::clamp(cc, 0, nc_[k] - 1);
+      lin += c[k] * stride_[k];
+      const bool closed = !sys_.periodic[k];
+      cblo_[i][k] = c[k] == 0 ? (closed ? lo_[k] - h.R : lo_[k]) : lo_[k] + c[k] * cw_[k];
+      cbhi_[i][k] = c[k] == nc_[k] - 1 ? (closed ? std::nextafter(hi_[k] + h.R, kNever) : hi_[k])
+                                       : lo_[k] + (c[k] + 1) * cw_[k];
     }
-    if (c != cold_[i].cell) {
+    // lin_ holds the linear cell of each particle: comparing it (in registers) avoids reading
+    // cold_'s cell array back right after writing c, which stalled the loop.
+    if (lin != lin_[i]) {
       cell_remove(i);
       cold_[i].cell = c;
       cell_insert(i);
@@ -2133,6 +2152,8 @@ class EdmEngine {
   double sg_w_ = 0.0;
   std::array<int, D> sg_n_{}, sg_stride_{};
   Vec<D> sg_lo_ = Vec<D>::Zero(), sg_cw_ = Vec<D>::Ones();
+  std::vector<int> lin_;  // linear EDM cell of each particle (relocate's test)
+  std::vector<Vec<D>> cblo_, cbhi_;  // the box a soft particle may move in without relocating
   std::vector<int> sg_start_, sg_items_, sg_cell_, sg_part_, sg_fill_;
   std::vector<std::uint64_t> moved_, moved_w_;
   std::vector<double> fz_scale_;

@@ -525,3 +525,39 @@ TEST(HybridRest, SleeperWhoseSupportIsKnockedAwayFalls) {
 
 }  // namespace
 }  // namespace matep
+
+namespace matep {
+namespace {
+
+// A soft pair (overlapping at t = 0) flying out through an open face of the domain: the substeps
+// stop the run with status "escaped", naming the particle, as EDM and TDM do.
+TEST(HybridEscape, SoftParticleLeavingThroughAnOpenFaceStopsTheRun) {
+  System<3> s;
+  s.lower = Vec<3>::Zero();
+  s.upper = Vec<3>(1.0, 1.0, 1.0);
+  Material m;
+  m.name = "glass";
+  m.density = 2500.0;
+  m.restitution = Restitution::constant(0.9);
+  m.contact = "hertz";
+  m.young = 1e7;
+  m.poisson = 0.3;
+  s.materials.push_back(m);
+  const double R = 0.005;
+  for (const double x : {0.9, 0.9 + 2 * R - 1e-5}) {
+    s.x.push_back(Vec<3>(x, 0.5, 0.5));
+    s.v.push_back(Vec<3>(20.0, 0.0, 0.0));
+    s.radius.push_back(R);
+    s.material.push_back(0);
+  }
+  EdmSettings es;
+  es.end_time = 0.1;
+  const RunResult<3> r = run_hybrid<3>(s, es, HybridSettings{});
+  EXPECT_EQ(r.status, "escaped") << r.message;
+  EXPECT_NE(r.message.find("left the domain along axis 0"), std::string::npos) << r.message;
+  EXPECT_LT(r.time, 0.1 / 20.0 + 1e-3);  // it leaves at t ~ 0.005 s, while still soft
+  EXPECT_EQ(r.hybrid.to_hard, 0u);
+}
+
+}  // namespace
+}  // namespace matep

@@ -1428,9 +1428,6 @@ class EdmEngine {
   // Moves soft i into its cell after a substep (periodic wrap; escape through an open face).
   void relocate(int i, double t) {
     Hot<D>& h = hot_[i];
-    // Fast path: still inside the box of its cell (edge cells of closed axes: up to the escape
-    // limit; NaN fails the test).
-    if ((h.x.array() >= cblo_[i].array()).all() && (h.x.array() < cbhi_[i].array()).all()) return;
     std::array<int, D> c{};
     int lin = 0;
     for (int k = 0; k < D; ++k) {
@@ -1469,25 +1466,44 @@ class EdmEngine {
   void substep(double t) {
     if ((++hstats_.substeps & 0x3ff) == 0)  // progress: events so far, substeps included
       for (auto* o : observers_) o->on_progress(t, counts_.total() + hstats_.substeps);
-    // 1. Drift the awake soft particles from t - h to t with the forces of t - h.
-    const double h = h_;
+    // 1. Drift the awake soft particles from t - h to t with the forces of t - h. (Raw pointers
+    // and local copies: the stores would otherwise make the compiler reload every vector's data
+    // pointer and every member at each use.)
+    const double h = h_, lim2 = 0.25 * lskin_ * lskin_;
+    const Vec<D> g = g_;
+    Hot<D>* const HOT = hot_.data();
+    Vec<D>* const FF = f_.data();
+    Vec<D>* const AC = acc_.data();
+    Vec<D>* const VH = vh_.data();
+    Vec<D>* const DISP = disp_.data();
+    const double* const MINV = minv_.data();
+    const Vec<D>* const BLO = cblo_.data();
+    const Vec<D>* const BHI = cbhi_.data();
+    bool dirty = false;
     for (const int i : soft_) {
-      const Vec<D> a = f_[i] * minv_[i] + g_;
-      acc_[i] = a;
-      f_[i].setZero();
-      vh_[i] += h * a;
-      const Vec<D> dx = h * vh_[i];
-      hot_[i].x += dx;
-      hot_[i].t = t;
-      disp_[i] += dx;
-      if (disp_[i].squaredNorm() > 0.25 * lskin_ * lskin_) dirty_ = true;
-      if (rot_) {
+      const Vec<D> a = FF[i] * MINV[i] + g;
+      AC[i] = a;
+      FF[i].setZero();
+      const Vec<D> v = VH[i] + h * a;
+      VH[i] = v;
+      const Vec<D> dx = h * v;
+      const Vec<D> x = HOT[i].x + dx;
+      HOT[i].x = x;
+      HOT[i].t = t;
+      const Vec<D> d = DISP[i] + dx;
+      DISP[i] = d;
+      dirty |= d.squaredNorm() > lim2;
+      // Still inside the box of its cell (edge cells of closed axes: up to the escape limit;
+      // NaN fails the test): no cell update.
+      if (!((x.array() >= BLO[i].array()).all() && (x.array() < BHI[i].array()).all())) relocate(i, t);
+    }
+    if (dirty) dirty_ = true;
+    if (rot_)
+      for (const int i : soft_) {
         alpha_[i] = tq_[i] * iinv_[i];
         tq_[i].setZero();
         wh_[i] += h * alpha_[i];
       }
-      relocate(i, t);
-    }
     hstats_.soft_particle_steps += soft_.size();
     if (!status_.empty()) return;
     // 2. Joins: pending particles, then hard particles within the skin of a soft one.
@@ -1502,21 +1518,24 @@ class EdmEngine {
     if (asleep_ > 0 && !watched_.empty()) wake_loaded(t);
     // 5. Full-step velocities; release and rest.
     double vmax2 = 0.0;
-    for (std::size_t s = 0; s < soft_.size();) {
-      const int i = soft_[s];
-      Vec<D> a = f_[i] * minv_[i] + g_;
-      hot_[i].v = vh_[i] + hdt_ * a;
-      vmax2 = std::max(vmax2, hot_[i].v.squaredNorm());
-      if (rot_) sys_.w[i] = wh_[i] + hdt_ * (tq_[i] * iinv_[i]);
-      if (touching_[i]) last_contact_[i] = t;
-      const bool free = !touching_[i] && !near_[i] && t - last_contact_[i] >= hyst_;
-      touching_[i] = near_[i] = 0;
-      if (free) {
-        release(i, t);  // swaps the last soft particle into slot s
-        continue;
-      }
-      ++s;
+    const double hdt = hdt_, hyst = hyst_;
+    const Vec<D>* const F5 = f_.data();
+    const Vec<D>* const VH5 = vh_.data();
+    std::uint8_t* const TOUCHING = touching_.data();
+    std::uint8_t* const NEAR = near_.data();
+    double* const LAST = last_contact_.data();
+    freed_.clear();
+    for (const int i : soft_) {
+      const Vec<D> v = VH5[i] + hdt * (F5[i] * MINV[i] + g);
+      HOT[i].v = v;
+      vmax2 = std::max(vmax2, v.squaredNorm());
+      if (TOUCHING[i]) LAST[i] = t;
+      if (!TOUCHING[i] && !NEAR[i] && t - LAST[i] >= hyst) freed_.push_back(i);
+      TOUCHING[i] = NEAR[i] = 0;
     }
+    if (rot_)
+      for (const int i : soft_) sys_.w[i] = wh_[i] + hdt * (tq_[i] * iinv_[i]);
+    for (const int i : freed_) release(i, t);
     vsoft_max_ = std::sqrt(vmax2);
     if (sleeping_ && ++since_sleep_check_ >= sleep_every_) {
       since_sleep_check_ = 0;
@@ -2154,6 +2173,7 @@ class EdmEngine {
   Vec<D> sg_lo_ = Vec<D>::Zero(), sg_cw_ = Vec<D>::Ones();
   std::vector<int> lin_;  // linear EDM cell of each particle (relocate's test)
   std::vector<Vec<D>> cblo_, cbhi_;  // the box a soft particle may move in without relocating
+  std::vector<int> freed_;           // soft particles released at this substep
   std::vector<int> sg_start_, sg_items_, sg_cell_, sg_part_, sg_fill_;
   std::vector<std::uint64_t> moved_, moved_w_;
   std::vector<double> fz_scale_;

@@ -96,7 +96,10 @@ class EdmEngine {
     // Hybrid: cells at least one largest diameter plus the soft list's skin wide, so that the
     // cells around a particle hold every particle within that skin of it.
     build_cells(2.0 * rmax + (Hybrid ? lskin_ : 0.0));
-    if constexpr (Hybrid) sg_w_ = 2.0 * rmax + lskin_;
+    if constexpr (Hybrid) {
+      sg_w_ = 2.0 * rmax + lskin_;
+      for (int k = 0; k < D; ++k) any_periodic_ = any_periodic_ || sys_.periodic[k];
+    }
     if constexpr (Hybrid) hybrid_arrays();
   }
 
@@ -1631,22 +1634,37 @@ class EdmEngine {
     double virial = 0.0;
     const SoftContact* const C = ctab_.data();
     const bool any_asleep = asleep_ > 0;
+    // Raw pointers and local copies, as in substep().
+    Hot<D>* const HOT = hot_.data();
+    const Vec<D>* const VH = vh_.data();
+    const Vec<D>* const AC = acc_.data();
+    Vec<D>* const FF = f_.data();
+    Spin<D>* const TQ = tq_.data();
+    const Spin<D>* const WH = wh_.data();
+    const Spin<D>* const AL = alpha_.data();
+    std::uint8_t* const TOUCHING = touching_.data();
+    std::uint8_t* const NEAR = near_.data();
+    const std::uint8_t* const MODE = mode_.data();
+    std::uint8_t* const LOST = fz_lost_.data();
+    const double skin = skin_, rest2 = rest_speed2_;
+    const bool periodic = any_periodic_;
+    std::uint64_t begun = 0;
     for (auto& e : pe_) {
       const int i = e.i, j = e.j;
-      Vec<D> dx = hot_[i].x - hot_[j].x;
-      min_image(dx);
-      const double Rs = hot_[i].R + hot_[j].R;
+      Vec<D> dx = HOT[i].x - HOT[j].x;
+      if (periodic) min_image(dx);
+      const double Rs = HOT[i].R + HOT[j].R;
       const double r2 = dx.squaredNorm();
-      const double cut = Rs + skin_;  // release needs no particle within the capture skin
-      if (r2 < cut * cut) near_[i] = near_[j] = 1;
+      const double cut = Rs + skin;  // release needs no particle within the capture skin
+      if (r2 < cut * cut) NEAR[i] = NEAR[j] = 1;
       if (r2 >= Rs * Rs) {
         if (e.touch) {
           e.touch = 0;
           e.xi.setZero();
           // A sleeper that loses a contact wakes (its support may be gone).
           if (any_asleep) {
-            if (mode_[i] == kAsleep) fz_lost_[i] = 1;
-            if (mode_[j] == kAsleep) fz_lost_[j] = 1;
+            if (MODE[i] == kAsleep) LOST[i] = 1;
+            if (MODE[j] == kAsleep) LOST[j] = 1;
           }
         }
         continue;
@@ -1659,8 +1677,8 @@ class EdmEngine {
       double onset = -1.0;
       if (!e.touch) {
         e.touch = 1;
-        ++hstats_soft_begun_;
-        onset = onset_fraction(delta, -(vh_[i] - vh_[j]).dot(n), h);
+        ++begun;
+        onset = onset_fraction(delta, -(VH[i] - VH[j]).dot(n), h);
         if (onset >= 0.0 && Law == NormalLaw::Linear) {
           local = *cp;
           at_onset<Law>(local, onset);
@@ -1668,15 +1686,15 @@ class EdmEngine {
         }
       }
       const SoftContact& c = *cp;
-      touching_[i] = touching_[j] = 1;
-      const Vec<D> vpi = vh_[i] + hdt * acc_[i], vpj = vh_[j] + hdt * acc_[j];
+      TOUCHING[i] = TOUCHING[j] = 1;
+      const Vec<D> vpi = VH[i] + hdt * AC[i], vpj = VH[j] + hdt * AC[j];
       Vec<D> F;
       // A sleeper (rest rule) is pushed by the springs only: its wake test compares the elastic
       // load of its awake neighbours with their share at sleep (wake_loaded).
-      const bool mixed = any_asleep && (mode_[i] == kAsleep || mode_[j] == kAsleep);
+      const bool mixed = any_asleep && (MODE[i] == kAsleep || MODE[j] == kAsleep);
       if (mixed) {  // a sleeper that a touching grain approaches faster than rest_speed wakes
-        const double un = (vh_[i] - vh_[j]).dot(n);  // < 0: approaching (n points from j to i)
-        if (un < 0.0 && un * un > rest_speed2_) fz_lost_[mode_[i] == kAsleep ? i : j] = 1;
+        const double un = (VH[i] - VH[j]).dot(n);  // < 0: approaching (n points from j to i)
+        if (un < 0.0 && un * un > rest2) LOST[MODE[i] == kAsleep ? i : j] = 1;
       }
       Vec<D> Fel;
       Spin<D> mel = Spin<D>::Zero();
@@ -1693,12 +1711,12 @@ class EdmEngine {
         F = fn * n;
         if (mixed) Fel = elastic_normal<Law>(c, delta) * n;
       } else {
-        const double li = pair_lever_arm(hot_[i].R, delta), lj = pair_lever_arm(hot_[j].R, delta);
+        const double li = pair_lever_arm(HOT[i].R, delta), lj = pair_lever_arm(HOT[j].R, delta);
         ContactKinematics<D> k;
         k.delta = delta;
         k.n = n;
-        k.v = contact_velocity<D>(vpi, wh_[i] + hdt * alpha_[i], li, vpj, wh_[j] + hdt * alpha_[j], lj, n);
-        k.dxi = h * contact_velocity<D>(vh_[i], wh_[i], li, vh_[j], wh_[j], lj, n);
+        k.v = contact_velocity<D>(vpi, WH[i] + hdt * AL[i], li, vpj, WH[j] + hdt * AL[j], lj, n);
+        k.dxi = h * contact_velocity<D>(VH[i], WH[i], li, VH[j], WH[j], lj, n);
         if (onset >= 0.0) k.dxi *= onset;
         ContactHistory<D> hist{e.xi};
         const ContactForce<D> cf = soft_contact_force_law<D, Law>(c, k, hist);
@@ -1710,19 +1728,19 @@ class EdmEngine {
           const Vec<D> ft = -kt * e.xi;
           Fel = elastic_normal<Law>(c, delta) * n + ft;
           mel = lever_moment<D>(n, ft);
-          tq_[i] -= li * (mode_[i] == kAsleep ? mel : m);
-          tq_[j] -= lj * (mode_[j] == kAsleep ? mel : m);
+          TQ[i] -= li * (MODE[i] == kAsleep ? mel : m);
+          TQ[j] -= lj * (MODE[j] == kAsleep ? mel : m);
         } else {
-          tq_[i] -= li * m;
-          tq_[j] -= lj * m;
+          TQ[i] -= li * m;
+          TQ[j] -= lj * m;
         }
       }
       if (mixed) {
-        f_[i] += mode_[i] == kAsleep ? Fel : F;
-        f_[j] -= mode_[j] == kAsleep ? Fel : F;
+        FF[i] += MODE[i] == kAsleep ? Fel : F;
+        FF[j] -= MODE[j] == kAsleep ? Fel : F;
       } else {
-        f_[i] += F;
-        f_[j] -= F;
+        FF[i] += F;
+        FF[j] -= F;
       }
       virial += F.dot(dx);
     }
@@ -1731,7 +1749,7 @@ class EdmEngine {
       const auto& W = sys_.walls[e.w];
       const Vec<D>& n = W.normal;
       const auto& now = wall_now_[e.w];
-      const double delta = hot_[i].R - (hot_[i].x - now.p).dot(n);
+      const double delta = HOT[i].R - (HOT[i].x - now.p).dot(n);
       if (delta <= 0.0) {
         if (e.touch) {
           e.touch = 0;
@@ -1743,29 +1761,30 @@ class EdmEngine {
       double onset = -1.0;
       if (!e.touch) {
         e.touch = 1;
-        ++hstats_soft_begun_;
-        onset = onset_fraction(delta, -(vh_[i] - now.uh).dot(n), h);
+        ++begun;
+        onset = onset_fraction(delta, -(VH[i] - now.uh).dot(n), h);
         if (onset >= 0.0) at_onset<Law>(c, onset);
       }
-      touching_[i] = 1;
-      const Vec<D> vi = vh_[i] + hdt * acc_[i] - now.u;
+      TOUCHING[i] = 1;
+      const Vec<D> vi = VH[i] + hdt * AC[i] - now.u;
       if constexpr (!Rot) {
-        f_[i] += normal_force(c, delta, -vi.dot(n)) * n;
+        FF[i] += normal_force(c, delta, -vi.dot(n)) * n;
       } else {
-        const double li = wall_lever_arm(hot_[i].R, delta);
+        const double li = wall_lever_arm(HOT[i].R, delta);
         ContactKinematics<D> k;
         k.delta = delta;
         k.n = n;
-        k.v = vi - spin_cross<D>(li * Spin<D>(wh_[i] + hdt * alpha_[i]), n);
-        k.dxi = h * (vh_[i] - now.uh - spin_cross<D>(li * wh_[i], n));
+        k.v = vi - spin_cross<D>(li * Spin<D>(WH[i] + hdt * AL[i]), n);
+        k.dxi = h * (VH[i] - now.uh - spin_cross<D>(li * WH[i], n));
         if (onset >= 0.0) k.dxi *= onset;
         ContactHistory<D> hist{e.xi};
         const ContactForce<D> cf = soft_contact_force_law<D, Law>(c, k, hist);
         e.xi = hist.xi;
-        f_[i] += cf.force;
-        tq_[i] += contact_torque<D>(n, cf.tangential, li);
+        FF[i] += cf.force;
+        TQ[i] += contact_torque<D>(n, cf.tangential, li);
       }
     }
+    hstats_soft_begun_ += begun;
     virial_ += virial * h;  // impulse times distance over the substep, as the hard collisions
   }
 
@@ -2172,6 +2191,7 @@ class EdmEngine {
   std::array<int, D> sg_n_{}, sg_stride_{};
   Vec<D> sg_lo_ = Vec<D>::Zero(), sg_cw_ = Vec<D>::Ones();
   std::vector<int> lin_;  // linear EDM cell of each particle (relocate's test)
+  bool any_periodic_ = false;
   std::vector<Vec<D>> cblo_, cbhi_;  // the box a soft particle may move in without relocating
   std::vector<int> freed_;           // soft particles released at this substep
   std::vector<int> sg_start_, sg_items_, sg_cell_, sg_part_, sg_fill_;

@@ -270,7 +270,6 @@ class EdmEngine {
     head_.assign(ncells_total_, -1);
     next_.assign(N_, -1);
     if constexpr (Hybrid) {
-      lin_.assign(N_, -1);
       cblo_.assign(N_, Vec<D>::Constant(kNever));  // empty: the first substep relocates
       cbhi_.assign(N_, Vec<D>::Constant(-kNever));
     }
@@ -289,7 +288,6 @@ class EdmEngine {
   }
   void cell_insert(int i) {
     const int l = linear(cold_[i].cell);
-    if constexpr (Hybrid) lin_[i] = l;
     next_[i] = head_[l];
     head_[l] = i;
   }
@@ -359,6 +357,14 @@ class EdmEngine {
       for (int j = head_[lin]; j >= 0; j = next_[j])
         if (j != i) f(j, shift);
     };
+    visit_stencil(nk, sk, count, cell);
+  }
+
+  // Calls cell(l, shift) for every combination of the per-axis neighbour cells nk[k][0..count[k])
+  // (linear offsets, summed) and image shifts sk[k][...] (for_neighbours, soft_grid_neighbours).
+  template <class Cell>
+  static void visit_stencil(const std::array<int, 3> (&nk)[D], const std::array<double, 3> (&sk)[D],
+                            const std::array<int, D>& count, Cell&& cell) {
     if constexpr (D == 2) {
       for (int a = 0; a < count[0]; ++a)
         for (int b = 0; b < count[1]; ++b) cell(nk[0][a] + nk[1][b], Vec<D>(sk[0][a], sk[1][b]));
@@ -1366,15 +1372,7 @@ class EdmEngine {
       for (int p = sg_start_[l], e = sg_start_[l + 1]; p < e; ++p)
         if (sg_items_[p] != i) f(sg_items_[p], shift);
     };
-    if constexpr (D == 2) {
-      for (int a = 0; a < count[0]; ++a)
-        for (int b = 0; b < count[1]; ++b) cell(nk[0][a] + nk[1][b], Vec<D>(sk[0][a], sk[1][b]));
-    } else {
-      for (int a = 0; a < count[0]; ++a)
-        for (int b = 0; b < count[1]; ++b)
-          for (int e = 0; e < count[2]; ++e)
-            cell(nk[0][a] + nk[1][b] + nk[2][e], Vec<D>(sk[0][a], sk[1][b], sk[2][e]));
-    }
+    visit_stencil(nk, sk, count, cell);
   }
 
   void watch(int j) {
@@ -1383,38 +1381,54 @@ class EdmEngine {
     watched_.push_back(j);
   }
 
-  // Elastic force on e.i (spring and tangential spring, no dashpots: both ends at rest) and the
-  // torques on both ends; zero when they no longer touch.
-  Vec<D> static_pair_force(const PairEntry& e, Spin<D>& ti, Spin<D>& tj) const {
-    ti = Spin<D>::Zero();
-    tj = Spin<D>::Zero();
+  // The elastic force of a contact (spring and tangential spring, no dashpots: both ends at rest):
+  // force and torque on e.i, torque on e.j (walls: none), and the overlap (<= 0: no contact, all
+  // zero).
+  struct StaticForce {
+    Vec<D> f = Vec<D>::Zero();
+    Spin<D> ti = Spin<D>::Zero(), tj = Spin<D>::Zero();
+    double delta = 0.0;
+  };
+  StaticForce static_pair_force(const PairEntry& e) const {
+    StaticForce out;
     Vec<D> dx = hot_[e.i].x - hot_[e.j].x;
     min_image(dx);
-    const double Rs = hot_[e.i].R + hot_[e.j].R, r = dx.norm();
-    if (!(r < Rs)) return Vec<D>::Zero();
+    const double r = dx.norm();
+    out.delta = hot_[e.i].R + hot_[e.j].R - r;
+    if (!(out.delta > 0.0)) return out;
     ContactKinematics<D> k;
-    k.delta = Rs - r;
+    k.delta = out.delta;
     k.n = dx / r;
     ContactHistory<D> hist{e.xi};
     const ContactForce<D> cf = soft_contact_force(ctab_[e.c], k, hist);
+    out.f = cf.force;
     if (rot_) {
       const Spin<D> m = lever_moment<D>(k.n, cf.tangential);
-      ti = -pair_lever_arm(hot_[e.i].R, k.delta) * m;
-      tj = -pair_lever_arm(hot_[e.j].R, k.delta) * m;
+      out.ti = -pair_lever_arm(hot_[e.i].R, k.delta) * m;
+      out.tj = -pair_lever_arm(hot_[e.j].R, k.delta) * m;
     }
-    return cf.force;
+    return out;
   }
-  Vec<D> static_wall_force(const WallEntry& e, double t, Spin<D>& ti) const {
-    ti = Spin<D>::Zero();
+  StaticForce static_wall_force(const WallEntry& e, double t) const {
+    StaticForce out;
     const auto& W = sys_.walls[e.w];
+    out.delta = hot_[e.i].R - (hot_[e.i].x - W.position(t)).dot(W.normal);
+    if (!(out.delta > 0.0)) return out;
     ContactKinematics<D> k;
-    k.delta = hot_[e.i].R - (hot_[e.i].x - W.position(t)).dot(W.normal);
-    if (!(k.delta > 0.0)) return Vec<D>::Zero();
+    k.delta = out.delta;
     k.n = W.normal;
     ContactHistory<D> hist{e.xi};
     const ContactForce<D> cf = soft_contact_force(ctab_[e.c], k, hist);
-    if (rot_) ti = contact_torque<D>(k.n, cf.tangential, wall_lever_arm(hot_[e.i].R, k.delta));
-    return cf.force;
+    out.f = cf.force;
+    if (rot_) out.ti = contact_torque<D>(k.n, cf.tangential, wall_lever_arm(hot_[e.i].R, k.delta));
+    return out;
+  }
+  // Adds s times the force and torque that pair e's static force sf puts on its end k to f[k],
+  // tq[k] (a sleeper's balance at sleep, fz_base_, or its awake neighbours' share, fz_mix_).
+  void add_share(std::vector<Vec<D>>& f, std::vector<Spin<D>>& tq, int k, const PairEntry& e,
+                 const StaticForce& sf, double s) {
+    f[k] += k == e.i ? Vec<D>(s * sf.f) : Vec<D>(-s * sf.f);
+    if (rot_) tq[k] += s * (k == e.i ? sf.ti : sf.tj);
   }
   void add_walls_only(int i, double t) {
     for (std::size_t w = 0; w < sys_.walls.size(); ++w)
@@ -1428,11 +1442,11 @@ class EdmEngine {
     return (hot_[i].x - W.position(t)).dot(W.normal) - hot_[i].R < lskin_ + reach;
   }
 
-  // Moves soft i into its cell after a substep (periodic wrap; escape through an open face).
+  // Moves soft i into its cell after a substep that took it out of its cell's box (cblo_, cbhi_;
+  // periodic wrap; escape through an open face).
   void relocate(int i, double t) {
     Hot<D>& h = hot_[i];
     std::array<int, D> c{};
-    int lin = 0;
     for (int k = 0; k < D; ++k) {
       if (sys_.periodic[k]) {
         if (h.x[k] >= hi_[k]) h.x[k] -= L_[k];
@@ -1449,15 +1463,12 @@ class EdmEngine {
       }
       const int cc = std::isfinite(h.x[k]) ? static_cast<int>(std::floor((h.x[k] - lo_[k]) / cw_[k])) : 0;
       c[k] = std::clamp(cc, 0, nc_[k] - 1);
-      lin += c[k] * stride_[k];
       const bool closed = !sys_.periodic[k];
       cblo_[i][k] = c[k] == 0 ? (closed ? lo_[k] - h.R : lo_[k]) : lo_[k] + c[k] * cw_[k];
       cbhi_[i][k] = c[k] == nc_[k] - 1 ? (closed ? std::nextafter(hi_[k] + h.R, kNever) : hi_[k])
                                        : lo_[k] + (c[k] + 1) * cw_[k];
     }
-    // lin_ holds the linear cell of each particle: comparing it (in registers) avoids reading
-    // cold_'s cell array back right after writing c, which stalled the loop.
-    if (lin != lin_[i]) {
+    if (c != cold_[i].cell) {
       cell_remove(i);
       cold_[i].cell = c;
       cell_insert(i);
@@ -1793,11 +1804,6 @@ class EdmEngine {
     if (!(delta > 0.0)) return 0.0;
     return c.normal == NormalLaw::Linear ? c.kn : 1.5 * c.kn * std::sqrt(delta);
   }
-  double pair_stiffness(const PairEntry& e) const {
-    Vec<D> dx = hot_[e.i].x - hot_[e.j].x;
-    min_image(dx);
-    return normal_stiffness(ctab_[e.c], hot_[e.i].R + hot_[e.j].R - dx.norm());
-  }
 
   // The spring part of the normal force at overlap delta.
   template <NormalLaw Law>
@@ -1915,24 +1921,20 @@ class EdmEngine {
     // 1. The static net contact force of each candidate and its mean contact force.
     for (const auto& e : pe_) {
       if (!e.touch || !(fz_cand_[e.i] || fz_cand_[e.j])) continue;
-      Spin<D> ti, tj;
-      const Vec<D> F = static_pair_force(e, ti, tj);
-      const double k_n = pair_stiffness(e);
+      const StaticForce sf = static_pair_force(e);
+      const double k_n = normal_stiffness(ctab_[e.c], sf.delta);
       for (const int k : {e.i, e.j}) {
         if (!fz_cand_[k]) continue;
-        fz_base_[k] += k == e.i ? F : Vec<D>(-F);
-        if (rot_) fz_tbase_[k] += k == e.i ? ti : tj;
+        add_share(fz_base_, fz_tbase_, k, e, sf, 1.0);
         fz_scale_[k] += k_n;
       }
     }
     for (const auto& e : we_) {
       if (!e.touch || !fz_cand_[e.i]) continue;
-      Spin<D> ti;
-      const Vec<D> F = static_wall_force(e, t, ti);
-      fz_base_[e.i] += F;
-      if (rot_) fz_tbase_[e.i] += ti;
-      const double delta = hot_[e.i].R - (hot_[e.i].x - sys_.walls[e.w].position(t)).dot(sys_.walls[e.w].normal);
-      fz_scale_[e.i] += normal_stiffness(ctab_[e.c], delta);
+      const StaticForce sf = static_wall_force(e, t);
+      fz_base_[e.i] += sf.f;
+      if (rot_) fz_tbase_[e.i] += sf.ti;
+      fz_scale_[e.i] += normal_stiffness(ctab_[e.c], sf.delta);
     }
     // 2. Candidates in equilibrium fall asleep.
     std::size_t keep = 0;
@@ -1968,24 +1970,15 @@ class EdmEngine {
         pe_[kp++] = e;
         continue;
       }
-      Spin<D> ti = Spin<D>::Zero(), tj = Spin<D>::Zero();
-      const Vec<D> F = e.touch ? static_pair_force(e, ti, tj) : Vec<D>::Zero();
-      const bool ai = mode_[e.i] == kAsleep, aj = mode_[e.j] == kAsleep;
-      if (ai && aj) {
-        if (!ni) {
-          fz_mix_[e.i] -= F;
-          if (rot_) fz_tmix_[e.i] -= ti;
-        }
-        if (!nj) {
-          fz_mix_[e.j] += F;
-          if (rot_) fz_tmix_[e.j] -= tj;
-        }
+      const StaticForce sf = e.touch ? static_pair_force(e) : StaticForce{};
+      if (mode_[e.i] == kAsleep && mode_[e.j] == kAsleep) {
+        if (!ni) add_share(fz_mix_, fz_tmix_, e.i, e, sf, -1.0);
+        if (!nj) add_share(fz_mix_, fz_tmix_, e.j, e, sf, -1.0);
         if (e.touch) pe_sleep_.push_back(e);
         continue;
       }
       const int k = ni ? e.i : e.j;  // the new sleeper; the other end is awake
-      fz_mix_[k] += k == e.i ? F : Vec<D>(-F);
-      if (rot_) fz_tmix_[k] += k == e.i ? ti : tj;
+      add_share(fz_mix_, fz_tmix_, k, e, sf, 1.0);
       watch(k);
       pe_[kp++] = e;
     }
@@ -2071,11 +2064,8 @@ class EdmEngine {
         continue;
       }
       if (ai || aj) {
-        Spin<D> ti, tj;
-        const Vec<D> F = static_pair_force(e, ti, tj);
         const int k = ai ? e.i : e.j;
-        fz_mix_[k] += k == e.i ? F : Vec<D>(-F);
-        if (rot_) fz_tmix_[k] += k == e.i ? ti : tj;
+        add_share(fz_mix_, fz_tmix_, k, e, static_pair_force(e), 1.0);
         watch(k);
       }
       pe_.push_back(e);
@@ -2190,7 +2180,6 @@ class EdmEngine {
   double sg_w_ = 0.0;
   std::array<int, D> sg_n_{}, sg_stride_{};
   Vec<D> sg_lo_ = Vec<D>::Zero(), sg_cw_ = Vec<D>::Ones();
-  std::vector<int> lin_;  // linear EDM cell of each particle (relocate's test)
   bool any_periodic_ = false;
   std::vector<Vec<D>> cblo_, cbhi_;  // the box a soft particle may move in without relocating
   std::vector<int> freed_;           // soft particles released at this substep

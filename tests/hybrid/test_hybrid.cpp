@@ -423,6 +423,18 @@ struct ModeRecorder final : Observer<D> {
   }
 };
 
+// Glass beads of the pour (d = 1 cm scale): Hertz, E = 1e7 Pa, nu = 0.3, frictionless.
+Material glass_hertz(double e) {
+  Material m;
+  m.name = "glass";
+  m.density = 2500.0;
+  m.restitution = Restitution::constant(e);
+  m.contact = "hertz";
+  m.young = 1e7;
+  m.poisson = 0.3;
+  return m;
+}
+
 HybridSettings resting(double speed, double time) {
   HybridSettings h;
   h.rest_speed = speed;
@@ -479,14 +491,7 @@ TEST(HybridRest, SleeperWhoseSupportIsKnockedAwayFalls) {
   s.lower = Vec<3>(0.0, 0.0, 0.0);
   s.upper = Vec<3>(0.4, 0.1, 0.1);
   s.gravity = Vec<3>(0.0, 0.0, -kG);
-  Material m;
-  m.name = "glass";
-  m.density = 2500.0;
-  m.restitution = Restitution::constant(0.5);
-  m.contact = "hertz";
-  m.young = 1e7;
-  m.poisson = 0.3;
-  s.materials.push_back(m);
+  s.materials.push_back(glass_hertz(0.5));
   for (int k = 0; k < 3; ++k) {
     Wall<3> lo;
     lo.name = "lo" + std::to_string(k);
@@ -523,26 +528,13 @@ TEST(HybridRest, SleeperWhoseSupportIsKnockedAwayFalls) {
   EXPECT_GE(r.hybrid.woken, 2u);
 }
 
-}  // namespace
-}  // namespace matep
-
-namespace matep {
-namespace {
-
 // A soft pair (overlapping at t = 0) flying out through an open face of the domain: the substeps
 // stop the run with status "escaped", naming the particle, as EDM and TDM do.
 TEST(HybridEscape, SoftParticleLeavingThroughAnOpenFaceStopsTheRun) {
   System<3> s;
   s.lower = Vec<3>::Zero();
   s.upper = Vec<3>(1.0, 1.0, 1.0);
-  Material m;
-  m.name = "glass";
-  m.density = 2500.0;
-  m.restitution = Restitution::constant(0.9);
-  m.contact = "hertz";
-  m.young = 1e7;
-  m.poisson = 0.3;
-  s.materials.push_back(m);
+  s.materials.push_back(glass_hertz(0.9));
   const double R = 0.005;
   for (const double x : {0.9, 0.9 + 2 * R - 1e-5}) {
     s.x.push_back(Vec<3>(x, 0.5, 0.5));

@@ -45,6 +45,18 @@ struct Recorder final : Observer<D> {
 
 // ---- bouncing ball -----------------------------------------------------------------------------
 
+// A frictionless Hertz material with Poisson ratio 0.3.
+Material hertz_material(const std::string& name, double density, double e, double young) {
+  Material m;
+  m.name = name;
+  m.density = density;
+  m.restitution = Restitution::constant(e);
+  m.contact = "hertz";
+  m.young = young;
+  m.poisson = 0.3;
+  return m;
+}
+
 // A steel ball (R = 5 cm) dropped from h = 1 m (its bottom) onto a floor, e = 0.8, Hertz contact.
 System<3> ball_system(double e) {
   System<3> s;
@@ -52,14 +64,7 @@ System<3> ball_system(double e) {
   s.upper = Vec<3>(0.5, 0.5, 2.0);
   s.periodic = {true, true, false};
   s.gravity = Vec<3>(0.0, 0.0, -kG);
-  Material m;
-  m.name = "steel";
-  m.density = 7800.0;
-  m.restitution = Restitution::constant(e);
-  m.contact = "hertz";
-  m.young = 2e11;
-  m.poisson = 0.3;
-  s.materials.push_back(m);
+  s.materials.push_back(hertz_material("steel", 7800.0, e, 2e11));
   Wall<3> floor;
   floor.name = "floor";
   floor.point = Vec<3>::Zero();
@@ -423,17 +428,8 @@ struct ModeRecorder final : Observer<D> {
   }
 };
 
-// Glass beads of the pour (d = 1 cm scale): Hertz, E = 1e7 Pa, nu = 0.3, frictionless.
-Material glass_hertz(double e) {
-  Material m;
-  m.name = "glass";
-  m.density = 2500.0;
-  m.restitution = Restitution::constant(e);
-  m.contact = "hertz";
-  m.young = 1e7;
-  m.poisson = 0.3;
-  return m;
-}
+// Glass beads of the pour (d = 1 cm scale): E = 1e7 Pa.
+Material glass_hertz(double e) { return hertz_material("glass", 2500.0, e, 1e7); }
 
 HybridSettings resting(double speed, double time) {
   HybridSettings h;

@@ -151,12 +151,7 @@ System<3> bed_frame(int n_side) {
   m.friction = kBedMu;
   m.restitution = Restitution::constant(kBedE);
   s.materials.push_back(m);
-  Wall<3> floor;
-  floor.name = "floor";
-  floor.point = Vec<3>::Zero();
-  floor.normal = Vec<3>(0.0, 0.0, 1.0);
-  floor.material = 0;
-  s.walls.push_back(floor);
+  s.walls.push_back(plane_wall<3>("floor", Vec<3>::Zero(), Vec<3>(0.0, 0.0, 1.0), 0));
   return s;
 }
 
@@ -301,7 +296,7 @@ Contacts count_contacts(const System<3>& s, const std::vector<Vec<3>>& x) {
           }
         }
     for (const auto& w : s.walls)
-      if ((x[i] - w.point).dot(w.normal) < s.radius[i]) ++c.walls;
+      if (w.geometry().at(x[i], s.radius[i], 0.0).gap < 0.0) ++c.walls;
   }
   return c;
 }

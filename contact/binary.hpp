@@ -1,8 +1,8 @@
 // Reference integrator for ONE isolated soft collision (sphere-sphere or sphere-plane, 3D spheres
 // or 2D disks, with translation and rotation). It starts at first contact (delta = 0), integrates
 // by velocity Verlet until the bodies separate, and reports the post-collision velocities and
-// spins with the peaks of the force history. The hybrid engine uses it to check that a hard
-// collision rule and a soft contact law agree; the tests use it against Chung & Ooi (2011).
+// spins with the peaks of the force history. The tests use it to check the soft contact laws
+// against Chung & Ooi (2011) and against the hard-sphere collision rules (contact/rough.hpp).
 //
 // Scheme (step h): v_half = v + h/2 a; x += h v_half; forces at the new positions; v = v_half +
 // h/2 a_new, and the same for spins. Velocity-dependent forces (dashpots, the friction direction)
@@ -18,7 +18,7 @@
 #include <vector>
 
 #include "contact/soft.hpp"
-#include "engine/vec.hpp"
+#include "contact/vec.hpp"
 
 namespace matep {
 

@@ -38,7 +38,7 @@
 #include <numbers>
 
 #include "contact/soft.hpp"
-#include "engine/vec.hpp"
+#include "contact/vec.hpp"
 
 namespace matep {
 

@@ -26,7 +26,7 @@
 #include <limits>
 #include <numbers>
 
-#include "engine/vec.hpp"
+#include "contact/vec.hpp"
 
 namespace matep {
 

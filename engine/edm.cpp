@@ -52,7 +52,7 @@ template <int D, class Queue, bool Hybrid = false>
 class EdmEngine {
  public:
   EdmEngine(System<D>&& system, const EdmSettings& set, const std::vector<Observer<D>*>& obs,
-            const HybridSettings* hybrid = nullptr)
+            const RoughRules* rough, const HybridSettings* hybrid = nullptr, const SoftPlan* plan = nullptr)
       : sys_(std::move(system)), set_(set), N_(static_cast<int>(sys_.size())) {
     const System<D>& sys = sys_;
     for (auto* o : obs) {
@@ -67,7 +67,7 @@ class EdmEngine {
     L_ = hi_ - lo_;
     window_ = set.collapse_window > 0.0 ? set.collapse_window : 1e-9 * set.end_time;
 
-    if constexpr (Hybrid) hybrid_setup(*hybrid);
+    if constexpr (Hybrid) hybrid_setup(*hybrid, plan);
     // Copy the input into the engine's arrays one array at a time, releasing each input array
     // as soon as it is copied (peak memory).
     hot_.resize(N_);
@@ -91,8 +91,11 @@ class EdmEngine {
     queue_.emplace(static_cast<std::size_t>(N_) + 4);  // particles + sampler, end, snapshots, substep
     all_elastic_ = true;
     for (const auto& mat : sys.materials) all_elastic_ = all_elastic_ && mat.restitution.is_elastic();
-    for (const auto& wall : sys.walls) moving_walls_ = moving_walls_ || wall.oscillating();
-    setup_rough();
+    for (const auto& wall : sys.walls) {
+      shapes_.push_back(wall.shape.get());
+      bracketed_walls_ = bracketed_walls_ || wall.geometry().bracketed();
+    }
+    setup_rough(rough);
     // Hybrid: cells at least one largest diameter plus the soft list's skin wide, so that the
     // cells around a particle hold every particle within that skin of it.
     build_cells(2.0 * rmax + (Hybrid ? lskin_ : 0.0));
@@ -472,10 +475,11 @@ class EdmEngine {
     double best = kNever;
     std::uint8_t type = kNone;
     int partner = -1;
-    for (std::size_t w = 0; w < sys_.walls.size(); ++w) {
-      const auto& wall = sys_.walls[w];
-      if (moving_walls_ && wall.oscillating()) continue;  // after the pairs (below)
-      const double dt = wall_collision_time(h.x, h.v, g_, h.R, wall.point, wall.normal);
+    const std::size_t nw = shapes_.size();
+    for (std::size_t w = 0; w < nw; ++w) {
+      const WallShape<D>& wall = *shapes_[w];
+      if (bracketed_walls_ && wall.bracketed()) continue;  // after the pairs (below)
+      const double dt = wall.impact_time(h.x, h.v, g_, h.R, now, kNever);
       if (dt < best) {
         best = dt;
         type = kWall;
@@ -483,15 +487,14 @@ class EdmEngine {
       }
     }
     test_pairs(i, now, best, type, partner);
-    // Oscillating walls: bracketed root search, stopped at the earliest event found so far. A wall
-    // impact cut off this way lies beyond an event whose handling re-predicts i (a collision of i,
-    // or a stale pair event), so it is never lost.
-    if (moving_walls_)
-      for (std::size_t w = 0; w < sys_.walls.size(); ++w) {
-        const auto& wall = sys_.walls[w];
-        if (!wall.oscillating()) continue;
-        const double dt = moving_wall_collision_time(h.x, h.v, g_, h.R, wall.point, wall.normal, wall.amplitude,
-                                                     wall.angular_frequency(), now, best);
+    // Bracketed walls (an oscillating plane): root search stopped at the earliest event found so
+    // far. A wall impact cut off this way lies beyond an event whose handling re-predicts i (a
+    // collision of i, or a stale pair event), so it is never lost.
+    if (bracketed_walls_)
+      for (std::size_t w = 0; w < nw; ++w) {
+        const WallShape<D>& wall = *shapes_[w];
+        if (!wall.bracketed()) continue;
+        const double dt = wall.impact_time(h.x, h.v, g_, h.R, now, best);
         if (dt < best) {
           best = dt;
           type = kWall;
@@ -663,21 +666,24 @@ class EdmEngine {
     }
   }
 
-  // Collision with a plane wall, infinitely heavy, static or oscillating at u(t): the normal
-  // relative velocity (v - u).n is reversed with the restitution at the relative normal speed. The
-  // record carries the wall's velocity as vj (before = after; zero for a static wall).
+  // Whether a bracketed wall's predicted impact of i at time t is a checkpoint (the search stopped
+  // short of the wall: the gap is still open), re-predicted by the caller, not a collision.
+  bool wall_checkpoint(int i, const WallShape<D>& wall, const WallPoint<D>& c) const {
+    return wall.bracketed() && c.gap > 1e-9 * (hot_[i].R + wall.stroke());
+  }
+
+  // Collision with a wall, infinitely heavy, at rest or moving at u (its surface velocity at the
+  // contact point): the normal relative velocity (v - u).n is reversed with the restitution at the
+  // relative normal speed. The record carries the wall's velocity as vj (before = after; zero for
+  // a wall at rest).
   void collide_wall(int i, int w) {
     Hot<D>& a = hot_[i];
     const auto& wall = sys_.walls[w];
-    const bool moving = moving_walls_ && wall.oscillating();
-    const Vec<D> u = moving ? wall.velocity(now_) : Vec<D>::Zero();
-    if (moving) {
-      // A prediction that stopped short of the wall (the step cap of oscillating_gap_closing_time)
-      // leaves the gap open: a checkpoint, re-predicted by the caller, not a collision.
-      const double gap = (a.x - wall.position(now_)).dot(wall.normal) - a.R;
-      if (gap > 1e-9 * (a.R + std::abs(wall.amplitude.dot(wall.normal)))) return;
-    }
-    const double un = (a.v - u).dot(wall.normal);
+    const WallPoint<D> c = wall.geometry().at(a.x, a.R, now_);
+    if (wall_checkpoint(i, wall.geometry(), c)) return;
+    const Vec<D>& u = c.velocity;
+    const Vec<D>& normal = c.normal;
+    const double un = (a.v - u).dot(normal);
     if (!(un < 0.0)) {
       // Resting on the wall within round-off (gravity presses it in, no normal speed left):
       // the zero-time limit of a bouncing sequence. It counts towards the collapse detector so
@@ -694,9 +700,9 @@ class EdmEngine {
       fill_spins(rec, i, -1, /*before=*/true);
     }
     if (rough_ && rough_rules_.is_rough(cold_[i].mat, wall.material))
-      rough_wall(i, wall, u, e);
+      rough_wall(i, wall, normal, u, e);
     else
-      smooth_moving_wall_collision(a.v, mass(i), wall.normal, u, e);
+      smooth_moving_wall_collision(a.v, mass(i), normal, u, e);
     ++cold_[i].counter;
     ++counts_.wall;
     note_collision(i);
@@ -707,7 +713,7 @@ class EdmEngine {
       rec.j = static_cast<std::uint32_t>(w);
       rec.mi = mass(i);
       rec.e = e;
-      rec.normal = wall.normal;
+      rec.normal = normal;
       rec.vi_after = a.v;
       rec.vj_before = u;
       rec.vj_after = u;
@@ -726,8 +732,8 @@ class EdmEngine {
   // ---- rough hard spheres (contact/rough.hpp; rules per material pair: engine/rough_rules.hpp) --
   // Smooth scenes never reach these: collide_pair / collide_wall test rough_ first, so a
   // frictionless run pays one predictable branch per collision and carries no spins.
-  void setup_rough() {
-    rough_rules_ = make_rough_rules(sys_.materials);
+  void setup_rough(const RoughRules* given) {
+    rough_rules_ = given ? *given : make_rough_rules(sys_.materials);
     rough_ = rough_rules_.any;
     if (rough_ && sys_.w.size() != static_cast<std::size_t>(N_)) sys_.w.assign(N_, Spin<D>::Zero());
   }
@@ -755,8 +761,8 @@ class EdmEngine {
   }
 
   // Rough collision of i with a wall moving at u (zero when static).
-  void rough_wall(int i, const Wall<D>& wall, const Vec<D>& u, double e) {
-    const RoughResult<D> r = rough_wall_collision<D>(rough_body(i), wall.normal, e,
+  void rough_wall(int i, const Wall<D>& wall, const Vec<D>& normal, const Vec<D>& u, double e) {
+    const RoughResult<D> r = rough_wall_collision<D>(rough_body(i), normal, e,
                                                      rough_rules_.rule(cold_[i].mat, wall.material), u);
     hot_[i].v = r.v_i;
     sys_.w[i] = r.w_i;
@@ -833,8 +839,6 @@ class EdmEngine {
 
   void measure_overlaps(RunResult<D>& res) {
     double worst = 0.0, worst_rel = 0.0;
-    std::vector<Vec<D>> wall_at;  // wall points at the final time (oscillating walls move)
-    for (const auto& wall : sys_.walls) wall_at.push_back(wall.position(res.time));
     for (int i = 0; i < N_; ++i) {
       const Hot<D>& a = hot_[i];
       for_neighbours(i, [&](int j, const Vec<D>& shift) {
@@ -844,9 +848,8 @@ class EdmEngine {
         if (ov > worst) worst = ov;
         if (ov / sigma > worst_rel) worst_rel = ov / sigma;
       });
-      for (std::size_t w = 0; w < sys_.walls.size(); ++w) {
-        const auto& wall = sys_.walls[w];
-        const double ov = a.R - (a.x - wall_at[w]).dot(wall.normal);
+      for (const WallShape<D>* wall : shapes_) {
+        const double ov = -wall->at(a.x, a.R, res.time).gap;
         if (ov > worst) worst = ov;
         if (ov / a.R > worst_rel) worst_rel = ov / a.R;
       }
@@ -883,9 +886,9 @@ class EdmEngine {
     Vec<D> xi;
   };
 
-  void hybrid_setup(const HybridSettings& hs) {
+  void hybrid_setup(const HybridSettings& hs, const SoftPlan* plan) {
     hset_ = hs;
-    plan_ = plan_soft<D>(sys_);
+    plan_ = plan ? *plan : plan_soft<D>(sys_);
     h_ = hybrid_substep(plan_, hs);
     hdt_ = 0.5 * h_;
     rot_ = plan_.friction;
@@ -965,7 +968,6 @@ class EdmEngine {
     iface_flag_.assign(N_, 0);
     iface_next_.assign(N_, 0.0);
     recent_t_.assign(N_, {-kNever, -kNever});
-    wall_now_.resize(sys_.walls.size());
   }
 
   double inv_mass(int i) const { return minv_[i]; }
@@ -1058,13 +1060,10 @@ class EdmEngine {
   }
 
   bool soft_rule_wall(int i, int w, double t) {
-    const auto& wall = sys_.walls[w];
-    const Vec<D> u = wall.velocity(t);
-    if (moving_walls_ && wall.oscillating()) {  // a checkpoint of the bracketing, not an impact
-      const double gap = (hot_[i].x - wall.position(t)).dot(wall.normal) - hot_[i].R;
-      if (gap > 1e-9 * (hot_[i].R + std::abs(wall.amplitude.dot(wall.normal)))) return false;
-    }
-    const double un = (hot_[i].v - u).dot(wall.normal);
+    const WallShape<D>& wall = *shapes_[w];
+    const WallPoint<D> c = wall.at(hot_[i].x, hot_[i].R, t);
+    if (wall_checkpoint(i, wall, c)) return false;  // a checkpoint of the bracketing, not an impact
+    const double un = (hot_[i].v - c.velocity).dot(c.normal);
     const double since = t - cold_[i].last;
     // Resting on the wall (no normal speed left) is the zero-time limit of a bouncing sequence.
     bool stability = !(un < 0.0);
@@ -1411,12 +1410,12 @@ class EdmEngine {
   }
   StaticForce static_wall_force(const WallEntry& e, double t) const {
     StaticForce out;
-    const auto& W = sys_.walls[e.w];
-    out.delta = hot_[e.i].R - (hot_[e.i].x - W.position(t)).dot(W.normal);
+    const WallPoint<D> c = shapes_[e.w]->at(hot_[e.i].x, hot_[e.i].R, t);
+    out.delta = -c.gap;
     if (!(out.delta > 0.0)) return out;
     ContactKinematics<D> k;
     k.delta = out.delta;
-    k.n = W.normal;
+    k.n = c.normal;
     ContactHistory<D> hist{e.xi};
     const ContactForce<D> cf = soft_contact_force(ctab_[e.c], k, hist);
     out.f = cf.force;
@@ -1435,11 +1434,10 @@ class EdmEngine {
       if (wall_in_reach(i, static_cast<int>(w), t))
         we_.push_back({i, static_cast<int>(w), wall_contact_of(static_cast<int>(w), i), 0, Vec<D>::Zero()});
   }
-  // Whether wall w is within the list skin of i (an oscillating wall: plus its stroke).
+  // Whether wall w is within the list skin of i (a moving wall: plus twice its stroke).
   bool wall_in_reach(int i, int w, double t) const {
-    const auto& W = sys_.walls[w];
-    const double reach = W.oscillating() ? 2.0 * std::abs(W.amplitude.dot(W.normal)) : 0.0;
-    return (hot_[i].x - W.position(t)).dot(W.normal) - hot_[i].R < lskin_ + reach;
+    const WallShape<D>& W = *shapes_[w];
+    return W.at(hot_[i].x, hot_[i].R, t).gap < lskin_ + 2.0 * W.stroke();
   }
 
   // Moves soft i into its cell after a substep that took it out of its cell's box (cblo_, cbhi_;
@@ -1622,10 +1620,7 @@ class EdmEngine {
   // the spring grown by h times the half-step contact velocity, the first-step weight of a contact
   // that begins inside the step (onset_fraction, at_onset in contact/soft.hpp).
   void soft_forces(double t) {
-    for (std::size_t w = 0; w < sys_.walls.size(); ++w) {
-      const auto& W = sys_.walls[w];
-      wall_now_[w] = {W.position(t), W.velocity(t), W.velocity(t - hdt_)};
-    }
+    wall_t_ = t;
     switch (plan_.law) {
       case NormalLaw::Linear:
         rot_ ? soft_forces_law<NormalLaw::Linear, true>() : soft_forces_law<NormalLaw::Linear, false>();
@@ -1757,10 +1752,10 @@ class EdmEngine {
     }
     for (auto& e : we_) {
       const int i = e.i;
-      const auto& W = sys_.walls[e.w];
-      const Vec<D>& n = W.normal;
-      const auto& now = wall_now_[e.w];
-      const double delta = HOT[i].R - (HOT[i].x - now.p).dot(n);
+      const WallShape<D>& W = *shapes_[e.w];
+      const WallPoint<D> wp = W.at(HOT[i].x, HOT[i].R, wall_t_);
+      const Vec<D>& n = wp.normal;
+      const double delta = -wp.gap;
       if (delta <= 0.0) {
         if (e.touch) {
           e.touch = 0;
@@ -1773,11 +1768,11 @@ class EdmEngine {
       if (!e.touch) {
         e.touch = 1;
         ++begun;
-        onset = onset_fraction(delta, -(VH[i] - now.uh).dot(n), h);
+        onset = onset_fraction(delta, -(VH[i] - W.surface_velocity(HOT[i].x, HOT[i].R, wall_t_ - hdt)).dot(n), h);
         if (onset >= 0.0) at_onset<Law>(c, onset);
       }
       TOUCHING[i] = 1;
-      const Vec<D> vi = VH[i] + hdt * AC[i] - now.u;
+      const Vec<D> vi = VH[i] + hdt * AC[i] - wp.velocity;
       if constexpr (!Rot) {
         FF[i] += normal_force(c, delta, -vi.dot(n)) * n;
       } else {
@@ -1786,7 +1781,7 @@ class EdmEngine {
         k.delta = delta;
         k.n = n;
         k.v = vi - spin_cross<D>(li * Spin<D>(WH[i] + hdt * AL[i]), n);
-        k.dxi = h * (VH[i] - now.uh - spin_cross<D>(li * WH[i], n));
+        k.dxi = h * (VH[i] - W.surface_velocity(HOT[i].x, HOT[i].R, wall_t_ - hdt) - spin_cross<D>(li * WH[i], n));
         if (onset >= 0.0) k.dxi *= onset;
         ContactHistory<D> hist{e.xi};
         const ContactForce<D> cf = soft_contact_force_law<D, Law>(c, k, hist);
@@ -1827,8 +1822,7 @@ class EdmEngine {
     for (const auto* list : {&we_, &we_sleep_})
     for (const auto& e : *list) {
       if (!e.touch) continue;
-      const auto& W = sys_.walls[e.w];
-      const double delta = hot_[e.i].R - (hot_[e.i].x - W.position(hot_[e.i].t)).dot(W.normal);
+      const double delta = -shapes_[e.w]->at(hot_[e.i].x, hot_[e.i].R, hot_[e.i].t).gap;
       if (delta > 0.0) el += stored(ctab_[e.c], delta, e.xi);
     }
     return el;
@@ -1863,8 +1857,7 @@ class EdmEngine {
   void hybrid_start() {
     for (int i = 0; i < N_; ++i) {
       bool over = false;
-      for (const auto& W : sys_.walls)
-        over = over || (hot_[i].x - W.position(0.0)).dot(W.normal) < hot_[i].R;
+      for (const WallShape<D>* W : shapes_) over = over || W->at(hot_[i].x, hot_[i].R, 0.0).gap < 0.0;
       if (!over)
         for_neighbours(i, [&](int j, const Vec<D>& shift) {
           const double s = hot_[i].R + hot_[j].R;
@@ -1901,7 +1894,7 @@ class EdmEngine {
       quiet_checks_[i] = s2 < rest_speed2_ ? quiet_checks_[i] + 1 : 0;
     }
     for (const auto& e : we_)
-      if (sys_.walls[e.w].oscillating()) quiet_checks_[e.i] = 0;
+      if (shapes_[e.w]->moving()) quiet_checks_[e.i] = 0;
     bool any = false;
     for (const int i : soft_) {
       const bool c = quiet_checks_[i] >= 4;
@@ -2106,7 +2099,7 @@ class EdmEngine {
   }
 
   void hybrid_result(RunResult<D>& res) {
-    res.method = "hybrid";
+    res.method = Method::Hybrid;
     HybridStats& s = hstats_;
     s.stability = kstab_;
     s.hysteresis = hyst_;
@@ -2188,10 +2181,7 @@ class EdmEngine {
   std::vector<double> fz_scale_;
   std::vector<int> watched_;
   std::vector<std::uint8_t> fz_cand_, fz_lost_, watch_flag_;
-  struct WallNow {
-    Vec<D> p, u, uh;
-  };
-  std::vector<WallNow> wall_now_;
+  double wall_t_ = 0.0;  // the time of the soft forces being computed
 
   System<D> sys_;  // materials, walls, geometry (particle arrays released)
   EdmSettings set_;
@@ -2200,7 +2190,8 @@ class EdmEngine {
   std::vector<Observer<D>*> observers_, collision_observers_, snapshot_observers_;
   Vec<D> g_, lo_, hi_, L_;
   bool gravity_ = false, all_elastic_ = false;
-  bool moving_walls_ = false;  // some wall oscillates
+  std::vector<const WallShape<D>*> shapes_;  // sys_.walls[w].shape
+  bool bracketed_walls_ = false;  // some wall's impact time is a bracketing search
   double window_ = 0.0;
   double now_ = 0.0;
 
@@ -2243,9 +2234,9 @@ class EdmEngine {
 
 template <int D>
 RunResult<D> run_edm(System<D> system, const EdmSettings& settings, QueueKind queue,
-                     const std::vector<Observer<D>*>& observers) {
-  if (queue == QueueKind::Heap) return EdmEngine<D, HeapQueue>(std::move(system), settings, observers).run();
-  return EdmEngine<D, CalendarQueue>(std::move(system), settings, observers).run();
+                     const std::vector<Observer<D>*>& observers, const RoughRules* rough) {
+  if (queue == QueueKind::Heap) return EdmEngine<D, HeapQueue>(std::move(system), settings, observers, rough).run();
+  return EdmEngine<D, CalendarQueue>(std::move(system), settings, observers, rough).run();
 }
 
 template <int D>
@@ -2257,18 +2248,20 @@ SoftPlan hybrid_preflight(const System<D>& system, const HybridSettings& setting
 
 template <int D>
 RunResult<D> run_hybrid(System<D> system, const EdmSettings& edm, const HybridSettings& hybrid,
-                        const std::vector<Observer<D>*>& observers) {
-  return EdmEngine<D, CalendarQueue, true>(std::move(system), edm, observers, &hybrid).run();
+                        const std::vector<Observer<D>*>& observers, const SoftPlan* plan) {
+  return EdmEngine<D, CalendarQueue, true>(std::move(system), edm, observers, nullptr, &hybrid, plan).run();
 }
 
 template SoftPlan hybrid_preflight<2>(const System<2>&, const HybridSettings&);
 template SoftPlan hybrid_preflight<3>(const System<3>&, const HybridSettings&);
 template RunResult<2> run_hybrid<2>(System<2>, const EdmSettings&, const HybridSettings&,
-                                    const std::vector<Observer<2>*>&);
+                                    const std::vector<Observer<2>*>&, const SoftPlan*);
 template RunResult<3> run_hybrid<3>(System<3>, const EdmSettings&, const HybridSettings&,
-                                    const std::vector<Observer<3>*>&);
+                                    const std::vector<Observer<3>*>&, const SoftPlan*);
 
-template RunResult<2> run_edm<2>(System<2>, const EdmSettings&, QueueKind, const std::vector<Observer<2>*>&);
-template RunResult<3> run_edm<3>(System<3>, const EdmSettings&, QueueKind, const std::vector<Observer<3>*>&);
+template RunResult<2> run_edm<2>(System<2>, const EdmSettings&, QueueKind, const std::vector<Observer<2>*>&,
+                                 const RoughRules*);
+template RunResult<3> run_edm<3>(System<3>, const EdmSettings&, QueueKind, const std::vector<Observer<3>*>&,
+                                 const RoughRules*);
 
 }  // namespace matep

@@ -22,8 +22,8 @@
 #include <cstdint>
 #include <vector>
 
-#include "engine/edm.hpp"
 #include "engine/observer.hpp"
+#include "engine/result.hpp"
 #include "engine/soft_plan.hpp"
 #include "engine/system.hpp"
 
@@ -47,8 +47,10 @@ SoftPlan hybrid_preflight(const System<D>& system, const HybridSettings& setting
 
 // Runs the system from t = 0 to edm.end_time with the hybrid rule. Particles that overlap at
 // t = 0 (a settled soft state) start soft; every other particle starts hard.
+// `plan`: the result of hybrid_preflight for this system and settings when the caller has it (io/
+// checks a scene once); null = planned here.
 template <int D>
 RunResult<D> run_hybrid(System<D> system, const EdmSettings& edm, const HybridSettings& hybrid,
-                        const std::vector<Observer<D>*>& observers = {});
+                        const std::vector<Observer<D>*>& observers = {}, const SoftPlan* plan = nullptr);
 
 }  // namespace matep

@@ -5,7 +5,7 @@
 #include <cstdint>
 #include <vector>
 
-#include "engine/vec.hpp"
+#include "contact/vec.hpp"
 
 namespace matep {
 

@@ -199,7 +199,7 @@ SoftPlan plan_soft(const System<D>& sys) {
     for (int k = 0; k < D; ++k) H += std::abs(sys.gravity[k]) / g * (sys.upper[k] - sys.lower[k]);
   // An oscillating wall adds its peak speed 2 pi f |A|.
   double wall_speed = 0.0;
-  for (const auto& w : sys.walls) wall_speed = std::max(wall_speed, w.angular_frequency() * w.amplitude.norm());
+  for (const auto& w : sys.walls) wall_speed = std::max(wall_speed, w.geometry().max_speed());
   plan.impact_speed = 2.0 * vmax + std::sqrt(2.0 * g * H) + wall_speed;
 
   const double q = inertia_factor<D>();

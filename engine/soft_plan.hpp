@@ -9,7 +9,7 @@
 #include <vector>
 
 #include "contact/soft.hpp"
-#include "engine/edm.hpp"
+#include "engine/result.hpp"
 #include "engine/system.hpp"
 
 namespace matep {

@@ -6,13 +6,16 @@
 #include <cmath>
 #include <cstdint>
 #include <limits>
+#include <memory>
 #include <numbers>
 #include <optional>
 #include <string>
 #include <vector>
 
+#include "contact/plane.hpp"
 #include "contact/restitution.hpp"
-#include "engine/vec.hpp"
+#include "contact/vec.hpp"
+#include "contact/wall.hpp"
 
 namespace matep {
 
@@ -32,30 +35,23 @@ struct Material {
   std::string tangential;
 };
 
+// A wall: a shape (contact/wall.hpp: a plane, ...) and the material it is made of.
 template <int D>
 struct Wall {
   std::string name;
-  Vec<D> point = Vec<D>::Zero();
-  Vec<D> normal = Vec<D>::Zero();  // unit; particles live on the side the normal points to
   int material = 0;
-  // Sinusoidal oscillation of the plane (the normal stays fixed): its point moves as
-  // p(t) = point + amplitude sin(2 pi frequency t). A zero amplitude is a static wall.
-  Vec<D> amplitude = Vec<D>::Zero();
-  double frequency = 0.0;
+  std::shared_ptr<const WallShape<D>> shape;
 
-  bool oscillating() const { return frequency > 0.0 && (amplitude.array() != 0.0).any(); }
-  double angular_frequency() const { return 2.0 * std::numbers::pi * frequency; }
-  // p(t) and its velocity u(t) = 2 pi f amplitude cos(2 pi f t).
-  Vec<D> position(double t) const {
-    if (!oscillating()) return point;
-    return point + std::sin(angular_frequency() * t) * amplitude;
-  }
-  Vec<D> velocity(double t) const {
-    if (!oscillating()) return Vec<D>::Zero();
-    const double w = angular_frequency();
-    return (w * std::cos(w * t)) * amplitude;
-  }
+  const WallShape<D>& geometry() const { return *shape; }
 };
+
+// A plane wall through `point` with unit `normal` (contact/plane.hpp), oscillating as
+// p(t) = point + amplitude sin(2 pi frequency t) when both are set.
+template <int D>
+Wall<D> plane_wall(std::string name, const Vec<D>& point, const Vec<D>& normal, int material = 0,
+                   const Vec<D>& amplitude = Vec<D>::Zero(), double frequency = 0.0) {
+  return {std::move(name), material, std::make_shared<PlaneWall<D>>(point, normal, amplitude, frequency)};
+}
 
 template <int D>
 struct System {

@@ -38,8 +38,8 @@ struct Memory {
 template <int D>
 class TdmEngine {
  public:
-  TdmEngine(System<D>& sys, const TdmSettings& set, const std::vector<Observer<D>*>& obs)
-      : sys_(sys), set_(set), obs_(obs) {}
+  TdmEngine(System<D>& sys, const TdmSettings& set, const std::vector<Observer<D>*>& obs, const SoftPlan* plan)
+      : sys_(sys), set_(set), obs_(obs), given_plan_(plan) {}
 
   RunResult<D> run();
 
@@ -80,6 +80,7 @@ class TdmEngine {
   System<D>& sys_;
   const TdmSettings& set_;
   const std::vector<Observer<D>*>& obs_;
+  const SoftPlan* given_plan_;
 
   SoftPlan plan_;
   std::size_t N_ = 0;
@@ -108,11 +109,8 @@ class TdmEngine {
   std::vector<std::uint32_t> wl_i_, wl_w_;
   std::vector<std::uint8_t> wl_touch_;
   std::vector<Vec<D>> wl_xi_;
-  // Each wall's position and velocities at the step being computed (refreshed by forces()).
-  struct WallNow {
-    Vec<D> p, u, uh;
-  };
-  std::vector<WallNow> wall_now_;
+  std::vector<const WallShape<D>*> shapes_;  // sys_.walls[w].shape
+  double wall_t_ = 0.0;                      // the time of the forces being computed
 
   // Cell grid used by rebuild().
   std::array<int, D> nc_{};
@@ -180,7 +178,7 @@ SoftPlan preflight(const System<D>& sys, const TdmSettings& set) {
 template <int D>
 void TdmEngine<D>::setup() {
   N_ = sys_.size();
-  plan_ = preflight(sys_, set_);
+  plan_ = given_plan_ ? *given_plan_ : preflight(sys_, set_);
   const double dt = set_.dt > 0.0 ? set_.dt : (plan_.default_dt > 0.0 ? plan_.default_dt : set_.end_time);
   // A whole number of steps ends exactly at end_time (the step only shortens).
   const double n = std::ceil(set_.end_time / dt * (1.0 - 1e-12));
@@ -191,7 +189,7 @@ void TdmEngine<D>::setup() {
   half_skin2_ = 0.25 * skin_ * skin_;
   L_ = sys_.upper - sys_.lower;
   g_ = sys_.gravity;
-  wall_now_.resize(sys_.walls.size());
+  for (const auto& w : sys_.walls) shapes_.push_back(w.shape.get());
   rot_ = plan_.friction;
   law_ = plan_.law;
 
@@ -475,12 +473,12 @@ void TdmEngine<D>::rebuild() {
   // 5. Wall list.
   wl_i_.clear();
   wl_w_.clear();
+  const double t_now = static_cast<double>(steps_) * dt_;
   for (std::size_t i = 0; i < N_; ++i)
-    for (std::size_t w = 0; w < sys_.walls.size(); ++w) {
-      const auto& W = sys_.walls[w];
-      // An oscillating wall reaches |amplitude.n| beyond its mean plane.
-      const double reach = W.oscillating() ? std::abs(W.amplitude.dot(W.normal)) : 0.0;
-      if ((x_[i] - W.point).dot(W.normal) < R_[i] + skin_ + reach) {
+    for (std::size_t w = 0; w < shapes_.size(); ++w) {
+      const WallShape<D>& W = *shapes_[w];
+      // A moving wall reaches up to twice its stroke beyond where it is now.
+      if (W.at(x_[i], R_[i], t_now).gap < skin_ + 2.0 * W.stroke()) {
         wl_i_.push_back(static_cast<std::uint32_t>(i));
         wl_w_.push_back(static_cast<std::uint32_t>(w));
       }
@@ -640,12 +638,11 @@ template <bool Rot, bool Uniform, NormalLaw Law>
 inline void TdmEngine<D>::wall_contact_force(std::uint32_t e, Acc& acc) {
   const double dt = dt_, hdt = hdt_;
   const std::uint32_t i = wl_i_[e];
-  const auto& W = sys_.walls[wl_w_[e]];
-  const Vec<D>& n = W.normal;
-  const WallNow& now = wall_now_[wl_w_[e]];
-  const Vec<D>& u = now.u;
-  const Vec<D>& uh = now.uh;
-  const double delta = R_[i] - (x_[i] - now.p).dot(n);
+  const WallShape<D>& W = *shapes_[wl_w_[e]];
+  const WallPoint<D> wp = W.at(x_[i], R_[i], wall_t_);
+  const Vec<D>& n = wp.normal;
+  const Vec<D>& u = wp.velocity;
+  const double delta = -wp.gap;
   if (delta <= 0.0) {
     if (wl_touch_[e]) {
       wl_touch_[e] = 0;
@@ -657,7 +654,7 @@ inline void TdmEngine<D>::wall_contact_force(std::uint32_t e, Acc& acc) {
   if (!wl_touch_[e]) {
     wl_touch_[e] = 1;
     ++acc.new_wall;
-    if (!initial_) onset = onset_fraction(delta, -(v_[i] - uh).dot(n), dt);
+    if (!initial_) onset = onset_fraction(delta, -(v_[i] - W.surface_velocity(x_[i], R_[i], wall_t_ - hdt)).dot(n), dt);
   }
   if (delta > acc.max_rel * R_[i]) acc.max_rel = delta / R_[i];
   if (delta > acc.max_abs) acc.max_abs = delta;
@@ -672,7 +669,7 @@ inline void TdmEngine<D>::wall_contact_force(std::uint32_t e, Acc& acc) {
     k.delta = delta;
     k.n = n;
     k.v = vi - spin_cross<D>(li * Spin<D>(w_[i] + hdt * alpha_[i]), n);
-    k.dxi = dt * (v_[i] - uh - spin_cross<D>(li * w_[i], n));
+    k.dxi = dt * (v_[i] - W.surface_velocity(x_[i], R_[i], wall_t_ - hdt) - spin_cross<D>(li * w_[i], n));
     if (onset >= 0.0) k.dxi *= onset;
     ContactHistory<D> h{wl_xi_[e]};
     const ContactForce<D> cf = soft_contact_force_law<D, Law>(c, k, h);
@@ -701,14 +698,9 @@ void TdmEngine<D>::force_body(int t) {
 template <int D>
 void TdmEngine<D>::forces(bool fuse) {
   for (auto& a : acc_t_) a = Acc{};
-  // Wall state of this step: an oscillating wall is at p(t_n), t_n = steps_ dt (the forces of step
-  // n are evaluated at t_n), and moves at u(t_n) (with the predicted velocities) and u(t_n - h/2)
-  // (with the half-step ones); a static wall keeps u = uh = 0.
-  const double tn = static_cast<double>(steps_) * dt_;
-  for (std::size_t w = 0; w < sys_.walls.size(); ++w) {
-    const auto& W = sys_.walls[w];
-    wall_now_[w] = {W.position(tn), W.velocity(tn), W.velocity(tn - hdt_)};
-  }
+  // Walls at this step: the forces of step n are evaluated at t_n = steps_ dt; a moving surface's
+  // velocity is taken at t_n (with the predicted velocities) and t_n - h/2 (with the half-step ones).
+  wall_t_ = static_cast<double>(steps_) * dt_;
   auto body = [&](int t) {
     switch (law_) {
       case NormalLaw::Linear:
@@ -818,8 +810,7 @@ ThermoSample TdmEngine<D>::sample(double time) {
     }
   for (std::size_t e = 0; e < wl_i_.size(); ++e) {
     const std::uint32_t i = wl_i_[e];
-    const auto& W = sys_.walls[wl_w_[e]];
-    const double delta = R_[i] - (x_[i] - W.position(time)).dot(W.normal);
+    const double delta = -shapes_[wl_w_[e]]->at(x_[i], R_[i], time).gap;
     if (delta <= 0.0) continue;
     el += stored(wall_coeffs(static_cast<int>(wl_w_[e]), i), delta, rot_ ? wl_xi_[e] : Vec<D>::Zero());
   }
@@ -857,7 +848,7 @@ RunResult<D> TdmEngine<D>::run() {
   const auto t0 = Clock::now();
   setup();
   RunResult<D> res;
-  res.method = "tdm";
+  res.method = Method::Tdm;
   const std::uint64_t nsteps = N_ == 0 ? 0 : static_cast<std::uint64_t>(std::llround(set_.end_time / dt_));
   auto step_of = [&](double interval, std::uint64_t k) {
     return static_cast<std::uint64_t>(std::llround(static_cast<double>(k) * interval / dt_));
@@ -988,8 +979,9 @@ RunResult<D> TdmEngine<D>::run() {
 }  // namespace
 
 template <int D>
-RunResult<D> run_tdm(System<D> system, const TdmSettings& settings, const std::vector<Observer<D>*>& observers) {
-  TdmEngine<D> engine(system, settings, observers);
+RunResult<D> run_tdm(System<D> system, const TdmSettings& settings, const std::vector<Observer<D>*>& observers,
+                     const SoftPlan* plan) {
+  TdmEngine<D> engine(system, settings, observers, plan);
   return engine.run();
 }
 
@@ -1000,7 +992,7 @@ SoftPlan tdm_preflight(const System<D>& system, const TdmSettings& settings) {
 
 template SoftPlan tdm_preflight<2>(const System<2>&, const TdmSettings&);
 template SoftPlan tdm_preflight<3>(const System<3>&, const TdmSettings&);
-template RunResult<2> run_tdm<2>(System<2>, const TdmSettings&, const std::vector<Observer<2>*>&);
-template RunResult<3> run_tdm<3>(System<3>, const TdmSettings&, const std::vector<Observer<3>*>&);
+template RunResult<2> run_tdm<2>(System<2>, const TdmSettings&, const std::vector<Observer<2>*>&, const SoftPlan*);
+template RunResult<3> run_tdm<3>(System<3>, const TdmSettings&, const std::vector<Observer<3>*>&, const SoftPlan*);
 
 }  // namespace matep

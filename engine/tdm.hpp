@@ -19,7 +19,7 @@
 #include <limits>
 #include <vector>
 
-#include "engine/edm.hpp"
+#include "engine/result.hpp"
 #include "engine/observer.hpp"
 #include "engine/soft_plan.hpp"
 #include "engine/system.hpp"
@@ -49,13 +49,17 @@ SoftPlan tdm_preflight(const System<D>& system, const TdmSettings& settings);
 // Runs the system from t = 0 to end_time. Throws std::invalid_argument for a system the soft
 // contact laws cannot describe (see plan_soft) or a time step above the stability limit; the
 // message names the material key or prints the limit.
+// `plan`: the result of tdm_preflight for this system and settings when the caller has it (io/
+// checks a scene once); null = planned here.
 template <int D>
 RunResult<D> run_tdm(System<D> system, const TdmSettings& settings,
-                     const std::vector<Observer<D>*>& observers = {});
+                     const std::vector<Observer<D>*>& observers = {}, const SoftPlan* plan = nullptr);
 
 extern template SoftPlan tdm_preflight<2>(const System<2>&, const TdmSettings&);
 extern template SoftPlan tdm_preflight<3>(const System<3>&, const TdmSettings&);
-extern template RunResult<2> run_tdm<2>(System<2>, const TdmSettings&, const std::vector<Observer<2>*>&);
-extern template RunResult<3> run_tdm<3>(System<3>, const TdmSettings&, const std::vector<Observer<3>*>&);
+extern template RunResult<2> run_tdm<2>(System<2>, const TdmSettings&, const std::vector<Observer<2>*>&,
+                                        const SoftPlan*);
+extern template RunResult<3> run_tdm<3>(System<3>, const TdmSettings&, const std::vector<Observer<3>*>&,
+                                        const SoftPlan*);
 
 }  // namespace matep

@@ -3,6 +3,7 @@
 #include <fmt/format.h>
 
 #include <algorithm>
+#include <functional>
 #include <array>
 #include <cerrno>
 #include <charconv>
@@ -460,7 +461,10 @@ struct SceneView {
   std::vector<int> material;   // per particle
   std::vector<double> mass;    // per particle
   std::vector<int> wall_material;
-  std::vector<std::array<double, 3>> wall_normal;
+  // Per wall: whether a unit vector (3 components; 2D uses the first two) is the wall's normal
+  // somewhere on its surface, and the wall's description for messages.
+  std::vector<std::function<bool(const double*, double)>> wall_has_normal;
+  std::vector<std::string> wall_text;
   std::vector<double> radius;  // per particle (rough collisions)
   RoughRules rough;            // which material pairs are rough, and their rule
 };
@@ -486,9 +490,13 @@ void fill_view(SceneView& v, const System<D>& sys, const Scene& scene, const Eve
   }
   for (const auto& w : sys.walls) {
     v.wall_material.push_back(w.material);
-    std::array<double, 3> n{0.0, 0.0, 0.0};
-    for (int k = 0; k < D; ++k) n[static_cast<std::size_t>(k)] = w.normal[k];
-    v.wall_normal.push_back(n);
+    v.wall_has_normal.push_back([shape = w.shape](const double* n, double tol) {
+      Vec<D> m;
+      for (int k = 0; k < D; ++k) m[k] = n[k];
+      // A 2D record's third component must be zero.
+      return (D == 3 || std::abs(n[2]) <= tol) && shape->has_normal(m, tol);
+    });
+    v.wall_text.push_back(fmt::format("{} ({})", w.name, w.geometry().describe()));
   }
 }
 
@@ -639,8 +647,8 @@ std::optional<Violation> check_record(const EventRecord& r, const EventLogHeader
   if (r.i >= h.particles || (pair && (r.j >= h.particles || r.j == r.i)))
     return fail("particle index",
                 fmt::format("i = {}, j = {} in a log of {} particles", r.i, r.j, h.particles));
-  if (!pair && sv && r.j >= sv->wall_normal.size())
-    return fail("wall index", fmt::format("wall {} but the scene has {} walls", r.j, sv->wall_normal.size()));
+  if (!pair && sv && r.j >= sv->wall_has_normal.size())
+    return fail("wall index", fmt::format("wall {} but the scene has {} walls", r.j, sv->wall_has_normal.size()));
   const double ntol = std::max(tol, 1e-14);
   const double nlen = norm3(r.normal);
   if (!(std::abs(nlen - 1.0) <= ntol))
@@ -656,13 +664,10 @@ std::optional<Violation> check_record(const EventRecord& r, const EventLogHeader
       return fail("mass", fmt::format("mj = {:.17g} but the scene gives particle {} mass {:.17g}", r.mj,
                                       r.j, sv->mass[r.j]));
     if (!pair) {
-      const auto& wn = sv->wall_normal[r.j];
-      const double d[3] = {r.normal[0] - wn[0], r.normal[1] - wn[1], r.normal[2] - wn[2]};
-      if (norm3(d) > ntol)
-        return fail("wall normal", fmt::format("n = ({:.10g}, {:.10g}, {:.10g}) but wall {} has normal "
-                                               "({:.10g}, {:.10g}, {:.10g})",
-                                               r.normal[0], r.normal[1], r.normal[2], r.j, wn[0],
-                                               wn[1], wn[2]));
+      if (!sv->wall_has_normal[r.j](r.normal, ntol))
+        return fail("wall normal", fmt::format("n = ({:.10g}, {:.10g}, {:.10g}) is not the normal of wall {} ({}) "
+                                               "at any point of its surface",
+                                               r.normal[0], r.normal[1], r.normal[2], r.j, sv->wall_text[r.j]));
     }
   }
   if (!(r.e >= 0.0 && r.e <= 1.0)) return fail("restitution", fmt::format("e = {:.17g} outside [0, 1]", r.e));

@@ -374,7 +374,7 @@ void write_summary(const std::string& path, const SummaryInfo& info, const RunRe
   fmt::print(f, "  \"collisions_per_second\": {},\n", json_number(r.counts.collisions() / wall));
   fmt::print(f, "  \"max_overlap\": {},\n", json_number(r.max_overlap));
   fmt::print(f, "  \"max_overlap_relative\": {},\n", json_number(r.max_overlap_relative));
-  if (r.method != "edm") {
+  if (r.method != Method::Edm) {
     const SoftStats& s = r.soft;
     fmt::print(f, "  \"soft\": {{\"steps\": {}, \"dt\": {}, \"default_dt\": {}, \"max_stable_dt\": {}, "
                "\"contact_time\": {}, \"rayleigh_time\": {}, \"impact_speed\": {}, \"skin\": {}, "
@@ -383,7 +383,7 @@ void write_summary(const std::string& path, const SummaryInfo& info, const RunRe
                json_number(s.contact_time), json_number(s.rayleigh_time), json_number(s.impact_speed),
                json_number(s.skin), s.rebuilds, s.contacts, s.threads, json_number(s.particle_steps_per_second));
   }
-  if (r.method == "hybrid") {
+  if (r.method == Method::Hybrid) {
     const HybridStats& h = r.hybrid;
     fmt::print(f, "  \"hybrid\": {{\"to_soft\": {}, \"by_stability\": {}, \"by_cost\": {}, \"by_cluster\": {}, "
                "\"by_capture\": {}, \"by_overlap\": {}, \"to_hard\": {}, \"slept\": {}, \"woken\": {}, "

@@ -140,7 +140,7 @@ template <int D>
 std::optional<std::pair<std::size_t, double>> wall_overlap(const std::vector<Wall<D>>& walls, const Vec<D>& x,
                                                           double r, double rel_tol) {
   for (std::size_t w = 0; w < walls.size(); ++w) {
-    const double s = (x - walls[w].point).dot(walls[w].normal);
+    const double s = walls[w].geometry().at(x, r, 0.0).gap + r;  // centre's distance to the surface
     if (s < r * (1.0 - rel_tol)) return std::make_pair(w, s);
   }
   return std::nullopt;

@@ -11,7 +11,7 @@
 #include <vector>
 
 #include "engine/system.hpp"
-#include "engine/vec.hpp"
+#include "contact/vec.hpp"
 
 namespace matep::placement {
 
@@ -71,7 +71,8 @@ class OverlapGrid {
   std::vector<Entry> entries_;
 };
 
-// Index of some wall with signed distance (x - point).normal < r * (1 - rel_tol), and that distance.
+// Index of some wall whose surface is nearer than r * (1 - rel_tol) to x at t = 0 (signed: negative
+// behind it), and that distance.
 template <int D>
 std::optional<std::pair<std::size_t, double>> wall_overlap(const std::vector<Wall<D>>& walls,
                                                           const Vec<D>& x, double r,

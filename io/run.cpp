@@ -6,6 +6,7 @@
 #include <cmath>
 #include <filesystem>
 #include <numbers>
+#include <optional>
 #include <stdexcept>
 
 #include "engine/hybrid.hpp"
@@ -62,7 +63,7 @@ namespace {
 template <int D>
 SoftPlan soft_preflight(const Scene& scene, const System<D>& sys) {
   try {
-    if (scene.method == "hybrid") return hybrid_preflight<D>(sys, hybrid_settings(scene));
+    if (scene.method == Method::Hybrid) return hybrid_preflight<D>(sys, hybrid_settings(scene));
     return tdm_preflight<D>(sys, tdm_settings(scene));
   } catch (const std::invalid_argument& e) {
     throw SceneError(fmt::format("{}: {}", scene.path, e.what()));
@@ -120,12 +121,14 @@ template <int D>
 RunOutcome run_system(const Scene& scene, const System<D>& sys, const std::string& dir,
                       const ProgressFn& progress) {
   check_runnable(scene, sys);
-  const bool soft = scene.method == "tdm";
-  const bool hybrid = scene.method == "hybrid";
-  if (hybrid) soft_preflight(scene, sys);
-  if (!soft) rough_preflight(scene, sys);
+  const bool soft = scene.method == Method::Tdm;
+  const bool hybrid = scene.method == Method::Hybrid;
+  // The checks run once; their plans go to the engine.
+  std::optional<SoftPlan> plan;
+  std::optional<RoughRules> rough;
+  if (soft || hybrid) plan = soft_preflight(scene, sys);
+  if (!soft) rough = rough_preflight(scene, sys);
   if (soft) {
-    soft_preflight(scene, sys);
     if (scene.output.events)
       throw SceneError(fmt::format("{}: output.events: true, but the event log records instantaneous collisions "
                                    "and a \"tdm\" run has none; set output.events = false",
@@ -151,14 +154,14 @@ RunOutcome run_system(const Scene& scene, const System<D>& sys, const std::strin
     observers.push_back(static_cast<Observer<D>*>(prog.get()));
   }
   const QueueKind q = scene.queue == "heap" ? QueueKind::Heap : QueueKind::Calendar;
-  RunResult<D> res = soft     ? run_tdm<D>(sys, tdm_settings(scene), observers)
-                     : hybrid ? run_hybrid<D>(sys, settings, hybrid_settings(scene), observers)
-                              : run_edm<D>(sys, settings, q, observers);
+  RunResult<D> res = soft     ? run_tdm<D>(sys, tdm_settings(scene), observers, &*plan)
+                     : hybrid ? run_hybrid<D>(sys, settings, hybrid_settings(scene), observers, &*plan)
+                              : run_edm<D>(sys, settings, q, observers, &*rough);
   if (log) log->close();
   write_final_state<D>(dir + "/final_state.csv", res);
   SummaryInfo info;
   info.scene = scene.path;
-  info.method = scene.method;
+  info.method = method_name(scene.method);
   info.queue = scene.queue;
   info.dimension = D;
   info.particles = sys.size();
@@ -211,8 +214,8 @@ std::string describe(const Scene& scene, const System<D>& sys) {
   for (int g : scene.group) ++per_group[g];
   for (std::size_t g = 0; g < per_group.size(); ++g)
     s += fmt::format("  [particles.{}] {}\n", scene.group_names[g], per_group[g]);
-  s += fmt::format("method       {}", scene.method);
-  if (scene.method == "edm") {
+  s += fmt::format("method       {}", method_name(scene.method));
+  if (scene.method == Method::Edm) {
     s += fmt::format(" (event-driven hard {}, {} queue)\n", D == 3 ? "spheres" : "disks", scene.queue);
     const RoughRules rough = rough_preflight(scene, sys);
     s += rough.any ? "contact      rough instantaneous collisions where a material pair has friction or a tangential "
@@ -231,7 +234,7 @@ std::string describe(const Scene& scene, const System<D>& sys) {
       }
     }
   } else {  // "tdm" or "hybrid" (the scene reader accepts no other method)
-    if (scene.method == "tdm")
+    if (scene.method == Method::Tdm)
       s += fmt::format(" (time-driven soft {}, velocity Verlet)\n", D == 3 ? "spheres" : "disks");
     else
       s += fmt::format(" (hard {0} in EDM, dense clusters as soft {0} in TDM substeps)\n", D == 3 ? "spheres" : "disks");
@@ -255,7 +258,7 @@ std::string describe(const Scene& scene, const System<D>& sys) {
     s += fmt::format("             contact time {:.6g} at impact speed {:.4g}, Rayleigh time {:.6g}; about {:.3g} steps\n",
                      plan.contact_time, plan.impact_speed, plan.rayleigh_time,
                      dt > 0.0 ? std::ceil(scene.end_time / dt) : 0.0);
-    if (scene.method == "hybrid") {
+    if (scene.method == Method::Hybrid) {
       const HybridSettings h = hybrid_settings(scene);
       s += fmt::format("hybrid rule  soft when {} collisions in a row each follow the previous one within {} t_c, or the\n"
                        "             collision interval falls below {} substeps (cost); capture skin {} of the smallest\n"
@@ -271,12 +274,7 @@ std::string describe(const Scene& scene, const System<D>& sys) {
   s += fmt::format("domain       lower {}  upper {}  periodic {}\n", fmt::join(sys.lower, ", "),
                    fmt::join(sys.upper, ", "), per);
   for (const auto& w : sys.walls) {
-    s += fmt::format("  [wall.{}] plane through ({}) normal ({})", w.name, fmt::join(w.point, ", "),
-                     fmt::join(w.normal, ", "));
-    if (w.oscillating())
-      s += fmt::format(", oscillating: amplitude ({}) at frequency {} (peak speed {:.4g})", fmt::join(w.amplitude, ", "),
-                       w.frequency, w.angular_frequency() * w.amplitude.norm());
-    s += "\n";
+    s += fmt::format("  [wall.{}] {}\n", w.name, w.geometry().describe());
   }
   if (sys.gravity.squaredNorm() > 0.0)
     s += fmt::format("gravity      ({})\n", fmt::join(sys.gravity, ", "));

@@ -477,21 +477,20 @@ void build_system(const TableReader& top, const TableReader& run, const fs::path
   // [wall.NAME]
   for (const auto& [name, t] : named_tables(top, "wall")) {
     t.allow({"type", "point", "normal", "material", "oscillation"});
-    Wall<D> w;
-    w.name = name;
     t.string("type", {"plane"});
-    w.point = to_vec<D>(t.numbers("point", D));
+    auto plane = std::make_shared<PlaneWall<D>>();
+    plane->point = to_vec<D>(t.numbers("point", D));
     const Vec<D> n = to_vec<D>(t.numbers("normal", D));
     if (!(n.norm() > 0.0)) t.fail("normal", "must be a nonzero vector", t.need("normal"));
-    w.normal = n / n.norm();
-    w.material = material_index(t, sys.materials);
+    plane->normal = n / n.norm();
+    const int material = material_index(t, sys.materials);
     if (t.has("oscillation")) {  // p(t) = point + amplitude sin(2 pi frequency t)
       const TableReader o = t.sub("oscillation");
       o.allow({"amplitude", "frequency"});
-      w.amplitude = to_vec<D>(o.numbers("amplitude", D));
-      w.frequency = o.number("frequency", kPositive);
+      plane->amplitude = to_vec<D>(o.numbers("amplitude", D));
+      plane->frequency = o.number("frequency", kPositive);
     }
-    sys.walls.push_back(std::move(w));
+    sys.walls.push_back(Wall<D>{name, material, std::move(plane)});
   }
 
   // [particles.NAME]: read and validate every group, then place the groups with fixed positions
@@ -501,7 +500,7 @@ void build_system(const TableReader& top, const TableReader& run, const fs::path
   const auto group_tables = named_tables(top, "particles");
   if (group_tables.empty()) fail(file, "particles", "missing (a scene needs at least one [particles.NAME] table)");
   Builder<D> b{file, base_dir, sys, {}, {}};
-  if (scene.method == "tdm" || scene.method == "hybrid") b.file_overlap = kSoftFileOverlap;
+  if (scene.method != Method::Edm) b.file_overlap = kSoftFileOverlap;
   for (std::size_t gi = 0; gi < group_tables.size(); ++gi) {
     b.read_group(group_tables[gi].first, group_tables[gi].second);
   }
@@ -565,7 +564,7 @@ Scene build_scene(toml::table& root, const std::string& file, const fs::path& ba
   const std::int64_t dim = run.integer("dimension");
   if (dim != 2 && dim != 3) run.fail("dimension", "must be 2 or 3", run.need("dimension"));
   scene.dimension = static_cast<int>(dim);
-  scene.method = run.string_opt("method", {"edm", "tdm", "hybrid"}).value_or("edm");
+  scene.method = parse_method(run.string_opt("method", {"edm", "tdm", "hybrid"}).value_or("edm")).value_or(Method::Edm);
   scene.end_time = run.number("end_time", kPositive);
   scene.seed = static_cast<std::uint64_t>(run.integer_or("seed", 1, kNonNegative));
   scene.queue = run.string_opt("queue", {"calendar", "heap"}).value_or("calendar");

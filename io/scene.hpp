@@ -10,6 +10,7 @@
 #include <variant>
 #include <vector>
 
+#include "engine/result.hpp"
 #include "engine/system.hpp"
 
 namespace matep {
@@ -40,7 +41,7 @@ struct HybridSpec {
 struct Scene {
   std::string path;               // the scene file as given
   int dimension = 3;
-  std::string method = "edm";     // "edm" | "tdm" | "hybrid"
+  Method method = Method::Edm;    // run.method: "edm" | "tdm" | "hybrid"
   std::string queue = "calendar"; // "calendar" | "heap"
   double end_time = 1.0;
   std::uint64_t seed = 1;

@@ -113,15 +113,15 @@ int cmd_run(const std::vector<std::string>& rest) {
       const double el = std::chrono::duration<double>(now - start).count();
       const double eta = frac > 0.0 ? el * (1.0 - frac) / frac : 0.0;
       fmt::print(stderr, "\r  t = {:.6g} ({:5.1f}%)  {:.3g} {}/s  ETA {:.0f} s   ", t, 100.0 * frac,
-                 events / std::max(el, 1e-9), scene.method == "tdm" ? "steps" : "events", eta);
+                 events / std::max(el, 1e-9), scene.method == matep::Method::Tdm ? "steps" : "events", eta);
     };
   }
   const matep::RunOutcome out = matep::run_scene(scene, dir, progress);
   if (tty) fmt::print(stderr, "\r{:78}\r", "");
-  if (scene.method == "edm")
+  if (scene.method == matep::Method::Edm)
     fmt::print("matep: {} collisions in {:.3f} s wall; output written to {}/\n", out.collisions,
                out.wall_seconds, out.out_dir);
-  else if (scene.method == "hybrid")
+  else if (scene.method == matep::Method::Hybrid)
     fmt::print("matep: {} hard collisions, {} substeps of {:.6g} ({} soft particle-steps), {} switches to soft and "
                "{} to hard, {} soft at the end{}, in {:.3f} s wall; output written to {}/\n",
                out.collisions, out.steps, out.dt, out.soft_particle_steps, out.to_soft, out.to_hard, out.soft_at_end,

@@ -28,17 +28,11 @@ System<D> bouncing_ball(double h, double e, double R = 0.05) {
   m.density = 1000.0;
   m.restitution = Restitution::constant(e);
   s.materials.push_back(m);
-  Wall<D> floor;
-  floor.name = "floor";
-  floor.point = Vec<D>::Zero();
-  floor.normal = Vec<D>::Zero();
-  floor.normal[1] = 1.0;
-  s.walls.push_back(floor);
-  Wall<D> roof = floor;
-  roof.name = "roof";
-  roof.point[1] = 2.9;
-  roof.normal[1] = -1.0;
-  s.walls.push_back(roof);
+  Vec<D> up = Vec<D>::Zero(), top = Vec<D>::Zero();
+  up[1] = 1.0;
+  top[1] = 2.9;
+  s.walls.push_back(plane_wall<D>("floor", Vec<D>::Zero(), up));
+  s.walls.push_back(plane_wall<D>("roof", top, -up));
   Vec<D> x = Vec<D>::Zero();
   x[1] = h + R;
   s.x.push_back(x);
@@ -200,11 +194,7 @@ TEST(EdmExact, DenseInelasticColumnCollapsesWithinBoundedTime) {
   m.density = 1.0;
   m.restitution = Restitution::constant(0.5);
   s.materials.push_back(m);
-  Wall<2> floor;
-  floor.name = "floor";
-  floor.point = Vec<2>(0, 0);
-  floor.normal = Vec<2>(0, 1);
-  s.walls.push_back(floor);
+  s.walls.push_back(plane_wall<2>("floor", Vec<2>(0, 0), Vec<2>(0, 1)));
   std::mt19937_64 rng(1);
   std::normal_distribution<double> G(0.0, 0.3);
   for (int row = 0; row < 30; ++row)

@@ -49,11 +49,7 @@ System<D> ball_on_floor(const Material& mat, double vt, double vn, double R = 0.
   m.name = "ball";
   m.density = 1000.0;
   s.materials.push_back(m);
-  Wall<D> floor;
-  floor.name = "floor";
-  floor.normal = axis<D>(1);
-  floor.material = 0;
-  s.walls.push_back(floor);
+  s.walls.push_back(plane_wall<D>("floor", Vec<D>::Zero(), axis<D>(1), 0));
   s.x.push_back(axis<D>(1, R + h));
   s.v.push_back(vt * axis<D>(0) - vn * axis<D>(1));
   s.w.push_back(Spin<D>::Zero());
@@ -195,8 +191,7 @@ TEST(EdmRough, MovingWallActsOnRelativeVelocity) {
   System<3> s = ball_on_floor<3>(rough_material(e, 0.5, "walton", 0.4), 0.0, vn, R, h);
   // Wall velocity u(t) = 2 pi f A cos(2 pi f t) along x; impact at t* = h/vn.
   const double f = 1.0 / (4.0 * h / vn) / 2.0;  // t* = 1/(8 f): u = 2 pi f A cos(pi/4)
-  s.walls[0].amplitude = Vec<3>(0.01, 0.0, 0.0);
-  s.walls[0].frequency = f;
+  s.walls[0] = plane_wall<3>("floor", Vec<3>::Zero(), axis<3>(1), 0, Vec<3>(0.01, 0.0, 0.0), f);
   const double ux = 2.0 * std::numbers::pi * f * 0.01 * std::cos(2.0 * std::numbers::pi * f * h / vn);
   s.v[0][0] = ux;
   EdmSettings set;
@@ -248,10 +243,7 @@ void check_chung_ooi(bool pair) {
       s.material = {0, 0};
     } else {
       s.lower[1] = 0.0;
-      Wall<D> floor;
-      floor.name = "floor";
-      floor.normal = axis<D>(1);
-      s.walls.push_back(floor);
+      s.walls.push_back(plane_wall<D>("floor", Vec<D>::Zero(), axis<D>(1)));
       s.x = {axis<D>(1, R + gap)};
       s.v = {axis<D>(1, -v)};
       s.w = {spin};
@@ -317,16 +309,7 @@ System<D> rough_box_gas(int n_side, double phi, double e, const Material& rough,
   wm.name = "wall";
   wm.friction = 0.5;
   s.materials.push_back(wm);
-  Wall<D> lo, hi;
-  lo.name = "lo";
-  lo.point = s.lower;
-  lo.normal = axis<D>(0);
-  lo.material = 1;
-  hi.name = "hi";
-  hi.point = s.upper;
-  hi.normal = axis<D>(0, -1.0);
-  hi.material = 1;
-  s.walls = {lo, hi};
+  s.walls = {plane_wall<D>("lo", s.lower, axis<D>(0), 1), plane_wall<D>("hi", s.upper, axis<D>(0, -1.0), 1)};
   return s;
 }
 

@@ -309,16 +309,11 @@ System<D> ball_over_vibrating_floor(double A, double f, double e, double gravity
   m.density = 1000.0;
   m.restitution = Restitution::constant(e);
   s.materials.push_back(m);
-  Wall<D> floor;
-  floor.name = "floor";
-  floor.normal[1] = 1.0;
-  floor.amplitude[1] = A;
-  floor.frequency = f;
-  Wall<D> roof;
-  roof.name = "roof";
-  roof.point[1] = 2.0;
-  roof.normal[1] = -1.0;
-  s.walls = {floor, roof};
+  Vec<D> up = Vec<D>::Zero(), amp = Vec<D>::Zero(), top = Vec<D>::Zero();
+  up[1] = 1.0;
+  amp[1] = A;
+  top[1] = 2.0;
+  s.walls = {plane_wall<D>("floor", Vec<D>::Zero(), up, 0, amp, f), plane_wall<D>("roof", top, -up)};
   s.radius = {R};
   s.material = {0};
   return s;
@@ -477,10 +472,7 @@ System<3> sphere_on_vibrating_floor(double A, double f, double e, double gravity
   Material plane = m;
   plane.name = "plane";
   s.materials = {m, plane};
-  Wall<3> floor{"floor", V3::Zero(), V3(0, 0, 1), 1};
-  floor.amplitude = V3(0.0, 0.0, A);
-  floor.frequency = f;
-  s.walls = {floor};
+  s.walls = {plane_wall<3>("floor", V3::Zero(), V3(0, 0, 1), 1, V3(0.0, 0.0, A), f)};
   s.radius = {kSoftR};
   s.material = {0};
   return s;
@@ -564,7 +556,7 @@ TEST(MovingWallTdm, FloorShakenSidewaysRollsTheSphere) {
   const double f = 10.0, w = 2.0 * kPi * f, A = 0.5 * kG / (w * w);
   const double delta_s = soft_mass() * kG / kSoftK;
   System<3> s = sphere_on_vibrating_floor(0.0, f, 0.5, kG);
-  s.walls[0].amplitude = V3(A, 0.0, 0.0);
+  s.walls[0] = plane_wall<3>("floor", V3::Zero(), V3(0, 0, 1), 1, V3(A, 0.0, 0.0), f);
   s.materials[0].friction = 1.0;
   s.materials[1].friction = 1.0;
   const double vx = 2.0 / 7.0 * A * w;
@@ -695,24 +687,25 @@ TEST(MovingWallScene, OscillationIsReadIntoTheWall) {
                                      "vib.toml", ".");
   const auto& sys = std::get<System<2>>(sc.system);
   ASSERT_EQ(sys.walls.size(), 2u);
-  const Wall<2>& floor = sys.walls[0];
+  const PlaneWall<2>& floor = *as_plane<2>(sys.walls[0].shape.get());
+  const PlaneWall<2>& roof = *as_plane<2>(sys.walls[1].shape.get());
   EXPECT_TRUE(floor.oscillating());
   EXPECT_EQ(floor.amplitude, V2(0.0, 0.001));
   EXPECT_EQ(floor.frequency, 25.0);
-  EXPECT_FALSE(sys.walls[1].oscillating());
+  EXPECT_FALSE(roof.oscillating());
   // p(t) = p0 + A sin(2 pi f t), u(t) = 2 pi f A cos(2 pi f t).
   const double t = 0.0137, w = 2.0 * kPi * 25.0;
   EXPECT_NEAR(floor.position(t)[1], 0.001 * std::sin(w * t), 1e-18);
   EXPECT_NEAR(floor.velocity(t)[1], 0.001 * w * std::cos(w * t), 1e-15);
   EXPECT_EQ(floor.position(0.0), floor.point);
-  EXPECT_EQ(sys.walls[1].position(t), sys.walls[1].point);
-  EXPECT_EQ(sys.walls[1].velocity(t), V2::Zero());
+  EXPECT_EQ(roof.position(t), roof.point);
+  EXPECT_EQ(roof.velocity(t), V2::Zero());
   EXPECT_NE(describe_scene(sc).find("oscillating: amplitude (0, 0.001) at frequency 25"), std::string::npos)
       << describe_scene(sc);
   // A zero amplitude is a static wall.
   const Scene still = load_scene_string(vibrated_scene("oscillation = {amplitude = [0, 0], frequency = 25}"),
                                         "vib.toml", ".");
-  EXPECT_FALSE(std::get<System<2>>(still.system).walls[0].oscillating());
+  EXPECT_FALSE(as_plane<2>(std::get<System<2>>(still.system).walls[0].shape.get())->oscillating());
 }
 
 TEST(MovingWallScene, BadOscillationTablesNameFileKeyAndValue) {

@@ -417,7 +417,7 @@ RunResult<3> incline_sphere(double mu, double skin, double T, double theta_deg) 
   wall.young.reset();  // rigid
   wall.poisson.reset();
   s.materials = {m, wall};
-  s.walls.push_back(Wall<3>{"floor", V3::Zero(), V3(0, 0, 1), 1});
+  s.walls.push_back(plane_wall<3>("floor", V3::Zero(), V3(0, 0, 1), 1));
   const double mass = rho * ball_volume<3>(R);
   const double K = 4.0 / 3.0 * E / (1.0 - nu * nu) * std::sqrt(R);
   const double delta = std::pow(mass * g * std::cos(th) / K, 2.0 / 3.0);  // static Hertz overlap
@@ -615,7 +615,7 @@ TEST(TdmStatics, SphereSettlesAtHertzStaticOverlap) {
   wall.young.reset();
   wall.poisson.reset();
   s.materials = {m, wall};
-  s.walls.push_back(Wall<3>{"floor", V3::Zero(), V3(0, 0, 1), 1});
+  s.walls.push_back(plane_wall<3>("floor", V3::Zero(), V3(0, 0, 1), 1));
   s.x = {V3(0, 0, R)};  // touching, at rest
   s.v = {V3::Zero()};
   s.radius = {R};
@@ -654,7 +654,7 @@ System<2> disk_on_floor(double e, double mu, double theta_deg, double k) {
   Material wall = m;
   wall.name = "plane";
   s.materials = {m, wall};
-  s.walls.push_back(Wall<2>{"floor", V2::Zero(), V2(0, 1), 1});
+  s.walls.push_back(plane_wall<2>("floor", V2::Zero(), V2(0, 1), 1));
   s.radius = {R};
   s.material = {0};
   s.w = {Spin<2>::Zero()};

@@ -65,11 +65,7 @@ System<3> ball_system(double e) {
   s.periodic = {true, true, false};
   s.gravity = Vec<3>(0.0, 0.0, -kG);
   s.materials.push_back(hertz_material("steel", 7800.0, e, 2e11));
-  Wall<3> floor;
-  floor.name = "floor";
-  floor.point = Vec<3>::Zero();
-  floor.normal = Vec<3>(0.0, 0.0, 1.0);
-  s.walls.push_back(floor);
+  s.walls.push_back(plane_wall<3>("floor", Vec<3>::Zero(), Vec<3>(0.0, 0.0, 1.0)));
   s.x.push_back(Vec<3>(0.0, 0.0, 1.05));
   s.v.push_back(Vec<3>::Zero());
   s.radius.push_back(0.05);
@@ -266,18 +262,12 @@ System<D> settling_box(int n, double width_d, std::uint64_t seed, double frictio
   }
   s.materials.push_back(m);
   for (int k = 0; k < D; ++k) {
-    Wall<D> lo;
-    lo.name = "lo" + std::to_string(k);
-    lo.point = Vec<D>::Zero();
-    lo.normal = Vec<D>::Zero();
-    lo.normal[k] = 1.0;
-    s.walls.push_back(lo);
+    Vec<D> n = Vec<D>::Zero(), top = Vec<D>::Zero();
+    n[k] = 1.0;
+    top[k] = W;
+    s.walls.push_back(plane_wall<D>("lo" + std::to_string(k), Vec<D>::Zero(), n));
     if (k == D - 1) break;  // open top
-    Wall<D> hi = lo;
-    hi.name = "hi" + std::to_string(k);
-    hi.point[k] = W;
-    hi.normal[k] = -1.0;
-    s.walls.push_back(hi);
+    s.walls.push_back(plane_wall<D>("hi" + std::to_string(k), top, -n));
   }
   std::mt19937_64 rng(seed);
   std::uniform_real_distribution<double> u(0.0, 1.0);
@@ -489,12 +479,9 @@ TEST(HybridRest, SleeperWhoseSupportIsKnockedAwayFalls) {
   s.gravity = Vec<3>(0.0, 0.0, -kG);
   s.materials.push_back(glass_hertz(0.5));
   for (int k = 0; k < 3; ++k) {
-    Wall<3> lo;
-    lo.name = "lo" + std::to_string(k);
-    lo.point = Vec<3>::Zero();
-    lo.normal = Vec<3>::Zero();
-    lo.normal[k] = 1.0;
-    s.walls.push_back(lo);
+    Vec<3> n = Vec<3>::Zero();
+    n[k] = 1.0;
+    s.walls.push_back(plane_wall<3>("lo" + std::to_string(k), Vec<3>::Zero(), n));
   }
   const Vec<3> a(0.2, 0.05, R + 1e-6), b(0.2, 0.05, 3 * R + 3e-6), c(0.05, 0.05, R + 1e-6);
   for (const Vec<3>& x : {a, b, c}) {

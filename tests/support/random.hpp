@@ -3,7 +3,7 @@
 
 #include <random>
 
-#include "engine/vec.hpp"
+#include "contact/vec.hpp"
 
 namespace matep::test {
 

@@ -8,7 +8,7 @@
 #include "contact/hard.hpp"
 #include "contact/predict.hpp"
 #include "contact/restitution.hpp"
-#include "engine/vec.hpp"
+#include "contact/vec.hpp"
 #include "tests/support/random.hpp"
 
 using namespace matep;

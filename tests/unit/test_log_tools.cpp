@@ -401,7 +401,7 @@ TEST(LogVerify, PassesOnTheLogOfEveryShippedCase) {
     const std::string name = scene.stem().string();
     // The event log records instantaneous collisions: soft-sphere (tdm) cases have none and
     // refuse output.events (tested in test_tdm_input.cpp).
-    if (matep::load_scene(scene.string()).method == "tdm") continue;
+    if (matep::load_scene(scene.string()).method == matep::Method::Tdm) continue;
     // Short runs; the bouncing ball runs to its collapse (exit 3), which still writes the log, and
     // the hybrid ball to its end (its first bounce is at 0.45 s; the switch record is skipped).
     const bool collapse = name == "bouncing_ball";

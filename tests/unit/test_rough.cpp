@@ -16,7 +16,7 @@
 #include "contact/hard.hpp"
 #include "contact/rough.hpp"
 #include "contact/soft.hpp"
-#include "engine/vec.hpp"
+#include "contact/vec.hpp"
 #include "tests/support/random.hpp"
 
 using namespace matep;

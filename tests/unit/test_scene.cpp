@@ -148,7 +148,7 @@ TEST(Scene, Valid2DRoundTrip) {
   const Scene sc = load(kScene2D);
   EXPECT_EQ(sc.path, kBase);
   EXPECT_EQ(sc.dimension, 2);
-  EXPECT_EQ(sc.method, "edm");
+  EXPECT_EQ(sc.method, matep::Method::Edm);
   EXPECT_EQ(sc.queue, "heap");
   EXPECT_EQ(sc.end_time, 10.0);
   EXPECT_EQ(sc.seed, 42u);
@@ -187,7 +187,8 @@ TEST(Scene, Valid2DRoundTrip) {
   EXPECT_EQ(s.materials[1].tangential_restitution, -0.4);
   ASSERT_EQ(s.walls.size(), 1u);
   EXPECT_EQ(s.walls[0].name, "floor");
-  EXPECT_EQ(s.walls[0].normal, Vec<2>(0.0, 1.0));
+  ASSERT_NE(as_plane<2>(s.walls[0].shape.get()), nullptr);
+  EXPECT_EQ(as_plane<2>(s.walls[0].shape.get())->normal, Vec<2>(0.0, 1.0));
 
   ASSERT_EQ(s.size(), 180u);
   ASSERT_EQ(sc.group.size(), 180u);
@@ -313,7 +314,7 @@ TEST(Scene, SoftSphereKeysAreStored) {
   const Scene sc = load(kScene2D, {"run.dt=1e-5", "run.threads=4", "run.method=tdm"});
   EXPECT_EQ(sc.dt, 1e-5);
   EXPECT_EQ(sc.threads, 4);
-  EXPECT_EQ(sc.method, "tdm");
+  EXPECT_EQ(sc.method, matep::Method::Tdm);
   expect_error(kScene2D, {"run.dt", "must be > 0", "0"}, {"run.dt=0"});
   expect_error(kScene2D, {"run.threads", "0"}, {"run.threads=0"});
   expect_error(kScene2D, {"material.rubber.contact", "\"spring\""}, {"material.rubber.contact=spring"});

@@ -12,7 +12,7 @@
 #include "contact/binary.hpp"
 #include "contact/soft.hpp"
 #include "contact/timestep.hpp"
-#include "engine/vec.hpp"
+#include "contact/vec.hpp"
 #include "tests/support/random.hpp"
 
 using namespace matep;

@@ -87,7 +87,7 @@ void add(System<3>& s, const V3& x, const V3& v, double R, int mat, const Spin<3
 }
 
 // A floor z = 0 (normal +z) made of material `mat`.
-void add_floor(System<3>& s, int mat) { s.walls.push_back(Wall<3>{"floor", V3::Zero(), V3(0, 0, 1), mat}); }
+void add_floor(System<3>& s, int mat) { s.walls.push_back(plane_wall<3>("floor", V3::Zero(), V3(0, 0, 1), mat)); }
 
 // Records the samples that carry elastic energy (the contact is open): the contact time is the span
 // of those samples plus one step (each end is known to within a step).

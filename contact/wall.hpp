@@ -1,0 +1,68 @@
+// Walls as shapes: the one interface through which every engine meets a rigid wall. A shape tells,
+// for a particle (sphere or disk) of radius R whose centre is at x at time t, the gap between the
+// two, the contact normal and the surface's velocity at the contact point; for the event-driven
+// engine it also gives the first contact time along a ballistic or parabolic flight. The engines
+// (EDM collisions, the soft-contact loop of TDM and the hybrid), the scene reader and
+// `matep log verify` know walls only through this class.
+//
+// Adding a shape: one file in contact/ with a class derived from WallShape<D> (contact/plane.hpp is
+// the model), its scene keys in io/scene.cpp and its tests. Nothing in engine/ changes.
+#pragma once
+
+#include <cmath>
+#include <limits>
+#include <string>
+
+#include "contact/vec.hpp"
+
+namespace matep {
+
+// What a particle at x with radius R sees of a wall at time t.
+template <int D>
+struct WallPoint {
+  double gap = 0.0;                  // distance from the surface minus R; < 0: overlap delta = -gap
+  Vec<D> normal = Vec<D>::Zero();    // unit, from the wall towards the particle (n of contact/soft.hpp)
+  Vec<D> velocity = Vec<D>::Zero();  // the surface's velocity at the contact point
+};
+
+template <int D>
+class WallShape {
+ public:
+  virtual ~WallShape() = default;
+
+  // "plane", ... (the scene's [wall.NAME] type).
+  virtual const char* kind() const = 0;
+  // One line for `matep check`.
+  virtual std::string describe() const = 0;
+
+  // Gap, normal and surface velocity for a particle at x with radius R at time t.
+  virtual WallPoint<D> at(const Vec<D>& x, double R, double t) const = 0;
+  // The surface's velocity at the contact point of a particle at x (radius R) at time t (the soft
+  // path asks it at the half step as well). Zero for a wall at rest.
+  virtual Vec<D> surface_velocity(const Vec<D>& x, double R, double t) const { return at(x, R, t).velocity; }
+
+  // EDM: the earliest dt >= 0 at which a particle with centre x, velocity v, constant acceleration g
+  // and radius R, all at the absolute time t0, reaches the surface while the gap closes (an
+  // approaching particle overlapping by round-off: dt = 0; a receding one is never an event), or
+  // kNever (infinity) if that does not happen before `limit`. Closed form where the motion allows;
+  // otherwise a bracketing that never skips the earliest root (see bracketed()).
+  virtual double impact_time(const Vec<D>& x, const Vec<D>& v, const Vec<D>& g, double R, double t0,
+                             double limit) const = 0;
+  // Whether impact_time is a search that profits from a limit (the engine calls it after the pair
+  // tests, limited by the earliest event found, and treats an event whose gap is still open as a
+  // checkpoint to re-predict from).
+  virtual bool bracketed() const { return false; }
+
+  // How far the surface moves from its rest position (neighbour lists reach this much further).
+  virtual double stroke() const { return 0.0; }
+  // The largest speed of any surface point (the soft plan's expected impact speed).
+  virtual double max_speed() const { return 0.0; }
+  // Whether the surface moves at all (a moving wall keeps the grains touching it awake).
+  virtual bool moving() const { return false; }
+
+  // Whether n is the wall's normal at some point of its surface (within tol): `matep log verify`
+  // checks a wall record's normal with it (the records carry no positions).
+  virtual bool has_normal(const Vec<D>& n, double tol) const = 0;
+};
+
+}  // namespace matep

@@ -1,40 +1,28 @@
-#include "engine/edm.hpp"
+// The hybrid engine (engine/hybrid.hpp states the rule): the EDM core of engine/edm/core.hpp,
+// extended through its hooks by a soft set advanced in TDM substeps (a system event of the same
+// queue), the switching rule and the rest rule.
+#include "engine/hybrid.hpp"
 
 #include <fmt/format.h>
 
 #include <algorithm>
 #include <array>
-#include <chrono>
 #include <cmath>
-#include <optional>
-#include <stdexcept>
 #include <map>
+#include <stdexcept>
 #include <tuple>
 
-#include "contact/hard.hpp"
-#include "contact/predict.hpp"
-#include "contact/rough.hpp"
 #include "contact/soft.hpp"
 #include "contact/timestep.hpp"
-#include "engine/huge_pages.hpp"
-#include "engine/hybrid.hpp"
-#include "engine/rough_rules.hpp"
+#include "engine/edm/core.hpp"
 #include "engine/soft_plan.hpp"
 #include "scheduler/calendar_queue.hpp"
-#include "scheduler/heap_queue.hpp"
 
 namespace matep {
 
 namespace {
 
-
-template <int D>
-struct alignas(D == 3 ? 64 : 16) Hot {
-  Vec<D> x;      // position at time t
-  Vec<D> v;      // velocity at time t
-  double t;      // the particle's own (lazy) time
-  double R;      // radius
-};
+using edm::Hot;
 
 // The hybrid's substep (run.dt, or the plan's default); throws above the stability limit.
 double hybrid_substep(const SoftPlan& plan, const HybridSettings& hs) {
@@ -46,820 +34,71 @@ double hybrid_substep(const SoftPlan& plan, const HybridSettings& hs) {
   return h;
 }
 
-// Hybrid = true adds the soft set of the hybrid engine (engine/hybrid.hpp): particle modes, TDM
-// substeps as events of the same queue and the switching rule. Hybrid = false compiles it out.
-template <int D, class Queue, bool Hybrid = false>
-class EdmEngine {
+
+template <int D>
+class HybridEngine final : public edm::EdmCore<D, CalendarQueue, HybridEngine<D>> {
+  using Base = edm::EdmCore<D, CalendarQueue, HybridEngine<D>>;
+  friend Base;
+  using Base::sys_;
+  using Base::set_;
+  using Base::N_;
+  using Base::queue_;
+  using Base::observers_;
+  using Base::collision_observers_;
+  using Base::snapshot_observers_;
+  using Base::g_;
+  using Base::lo_;
+  using Base::hi_;
+  using Base::L_;
+  using Base::gravity_;
+  using Base::all_elastic_;
+  using Base::shapes_;
+  using Base::bracketed_walls_;
+  using Base::window_;
+  using Base::now_;
+  using Base::hot_;
+  using Base::mass_factor_;
+  using Base::cold_;
+  using Base::nc_;
+  using Base::stride_;
+  using Base::cw_;
+  using Base::ncells_total_;
+  using Base::head_;
+  using Base::next_;
+  using Base::offsets_all_;
+  using Base::offsets_layer_;
+  using Base::counts_;
+  using Base::virial_;
+  using Base::prev_ke_;
+  using Base::status_;
+  using Base::message_;
+  using Base::rough_;
+  using Base::rough_rules_;
+  using Base::mass;
+  using Base::advance;
+  using Base::predict;
+  using Base::for_neighbours;
+  using Base::visit_stencil;
+  using Base::cell_insert;
+  using Base::cell_remove;
+  using Base::linear;
+  using Base::min_image;
+  using Base::wall_checkpoint;
+  using Base::kNone;
+  using Base::kPair;
+  using Base::kWall;
+
  public:
-  EdmEngine(System<D>&& system, const EdmSettings& set, const std::vector<Observer<D>*>& obs,
-            const RoughRules* rough, const HybridSettings* hybrid = nullptr, const SoftPlan* plan = nullptr)
-      : sys_(std::move(system)), set_(set), N_(static_cast<int>(sys_.size())) {
-    const System<D>& sys = sys_;
-    for (auto* o : obs) {
-      if (!o) continue;
-      observers_.push_back(o);
-      if (o->wants_collisions()) collision_observers_.push_back(o);
-    }
-    g_ = sys.gravity;
-    gravity_ = g_.squaredNorm() > 0.0;
-    lo_ = sys.lower;
-    hi_ = sys.upper;
-    L_ = hi_ - lo_;
-    window_ = set.collapse_window > 0.0 ? set.collapse_window : 1e-9 * set.end_time;
-
-    if constexpr (Hybrid) hybrid_setup(*hybrid, plan);
-    // Copy the input into the engine's arrays one array at a time, releasing each input array
-    // as soon as it is copied (peak memory).
-    hot_.resize(N_);
-    double rmax = 0.0;
-    for (int i = 0; i < N_; ++i) {
-      hot_[i].x = sys.x[i];
-      hot_[i].v = sys.v[i];
-      hot_[i].t = 0.0;
-      hot_[i].R = sys.radius[i];
-      rmax = std::max(rmax, sys.radius[i]);
-    }
-    release(sys_.x);
-    release(sys_.v);
-    release(sys_.radius);
-    cold_.resize(N_);
-    for (int i = 0; i < N_; ++i) cold_[i].mat = sys.material[i];
-    release(sys_.material);
-    // m = density * ball volume (System::mass), as a per-material factor times R^D.
-    for (const auto& mat : sys_.materials) mass_factor_.push_back(mat.density * ball_volume<D>(1.0));
-    // The queue is allocated after the input arrays are gone (peak memory).
-    queue_.emplace(static_cast<std::size_t>(N_) + 4);  // particles + sampler, end, snapshots, substep
-    all_elastic_ = true;
-    for (const auto& mat : sys.materials) all_elastic_ = all_elastic_ && mat.restitution.is_elastic();
-    for (const auto& wall : sys.walls) {
-      shapes_.push_back(wall.shape.get());
-      bracketed_walls_ = bracketed_walls_ || wall.geometry().bracketed();
-    }
-    setup_rough(rough);
-    // Hybrid: cells at least one largest diameter plus the soft list's skin wide, so that the
-    // cells around a particle hold every particle within that skin of it.
-    build_cells(2.0 * rmax + (Hybrid ? lskin_ : 0.0));
-    if constexpr (Hybrid) {
-      sg_w_ = 2.0 * rmax + lskin_;
-      for (int k = 0; k < D; ++k) any_periodic_ = any_periodic_ || sys_.periodic[k];
-    }
-    if constexpr (Hybrid) hybrid_arrays();
-  }
-
-  template <class V>
-  static void release(V& v) {
-    V().swap(v);
-  }
-
-  double mass(int i) const {
-    const double R = hot_[i].R;
-    return D == 3 ? mass_factor_[cold_[i].mat] * R * R * R : mass_factor_[cold_[i].mat] * R * R;
-  }
-
-  RunResult<D> run() {
-    const auto wall0 = std::chrono::steady_clock::now();
-    // System events: one id for the thermo sampler, one for the end of the run.
-    const int sample_id = N_, end_id = N_ + 1, snapshot_id = N_ + 2;
-    if constexpr (Hybrid) hybrid_start();
-    emit_sample(0.0, /*interval=*/0.0);
-    for (int i = 0; i < N_; ++i)
-      if (!Hybrid || mode_[i] == kHard) predict(i, 0.0);
-    if (set_.thermo_interval > 0.0 && set_.thermo_interval < set_.end_time * (1.0 - 1e-12))
-      queue_->set(sample_id, set_.thermo_interval);
-    queue_->set(end_id, set_.end_time);
-    for (auto* o : observers_)
-      if (o->wants_snapshots()) snapshot_observers_.push_back(o);
-    const bool snapshots = set_.snapshot_interval > 0.0 && !snapshot_observers_.empty();
-    if (snapshots) {
-      emit_snapshot(0.0);
-      if (set_.snapshot_interval < set_.end_time * (1.0 - 1e-12)) queue_->set(snapshot_id, set_.snapshot_interval);
-    }
-    std::uint64_t snapshot_k = 1;
-    double last_snapshot_time = 0.0;
-    std::uint64_t sample_k = 1;
-    double last_sample_time = 0.0;
-
-    RunResult<D> res;
-    std::uint64_t processed = 0;
-    while (!queue_->empty()) {
-      const auto [id, t] = queue_->top();
-      queue_->pop();
-      now_ = t;
-      if (id == end_id) break;
-      if (id == sample_id) {
-        emit_sample(t, t - last_sample_time);
-        last_sample_time = t;
-        ++sample_k;
-        const double next = static_cast<double>(sample_k) * set_.thermo_interval;
-        // The end of the run writes its own row; skip a sample that would fall on it.
-        if (next < set_.end_time * (1.0 - 1e-12)) queue_->set(sample_id, next);
-        continue;
-      }
-      if constexpr (Hybrid) {
-        if (id == substep_id_) {
-          substep(t);
-          if (!status_.empty()) break;
-          continue;
-        }
-      }
-      if (id == snapshot_id) {
-        emit_snapshot(t);
-        last_snapshot_time = t;
-        ++snapshot_k;
-        const double next = static_cast<double>(snapshot_k) * set_.snapshot_interval;
-        if (next < set_.end_time * (1.0 - 1e-12)) queue_->set(snapshot_id, next);
-        continue;
-      }
-      if (processed++ >= set_.max_events) {
-        status_ = "max_events";
-        message_ = fmt::format("stopped after run.max_events = {} events at t = {:.17g}",
-                               set_.max_events, t);
-        break;
-      }
-      if ((processed & 0x3fff) == 0)
-        for (auto* o : observers_) o->on_progress(t, processed);
-      // Start fetching the next event's particle while this one is handled (large systems).
-      if (!queue_->empty()) {
-        const int next_id = queue_->top().first;
-        if (next_id < N_) {
-          __builtin_prefetch(&hot_[next_id]);
-          __builtin_prefetch(&cold_[next_id]);
-        }
-      }
-      handle(id, t);
-      if (!status_.empty()) break;
-    }
-    // Bring every particle to the final time and write the last row.
-    const double t_end = status_.empty() ? set_.end_time : now_;
-    // Soft particles stay at their last substep (less than one substep before t_end).
-    for (int i = 0; i < N_; ++i)
-      if (!Hybrid || mode_[i] == kHard || mode_[i] == kPending) advance(i, t_end);
-    if (t_end > last_sample_time || counts_.samples == 1) emit_sample(t_end, t_end - last_sample_time);
-    if (snapshots && t_end > last_snapshot_time) emit_snapshot(t_end);
-
-    res.status = status_.empty() ? "ok" : status_;
-    res.message = message_;
-    res.time = t_end;
-    res.counts = counts_;
-    if constexpr (Hybrid) hybrid_result(res);
-    measure_overlaps(res);
-    // Free the scheduling state before the result's arrays are allocated (peak memory).
-    queue_.reset();
-    release(head_);
-    release(next_);
-    release(cold_);
-    res.x.resize(N_);
-    res.v.resize(N_);
-    res.radius.resize(N_);
-    for (int i = 0; i < N_; ++i) {
-      res.x[i] = hot_[i].x;
-      res.v[i] = hot_[i].v;
-      res.radius[i] = hot_[i].R;
-    }
-    res.w = std::move(sys_.w);
-    res.wall_seconds =
-        std::chrono::duration<double>(std::chrono::steady_clock::now() - wall0).count();
-    return res;
+  HybridEngine(System<D>&& system, const EdmSettings& edm, const HybridSettings& hs, const SoftPlan* plan,
+               const std::vector<Observer<D>*>& obs)
+      : Base(std::move(system), edm, obs), given_settings_(hs), given_plan_(plan) {
+    this->init(nullptr);
   }
 
  private:
-  enum : std::uint8_t { kNone = 0, kPair = 1, kWall = 2 };
+  HybridSettings given_settings_;
+  const SoftPlan* given_plan_ = nullptr;
 
-  // ---- cells ---------------------------------------------------------------------------------
-  void build_cells(double dmax) {
-    ncells_total_ = 1;
-    for (int k = 0; k < D; ++k) {
-      int n = dmax > 0.0 ? static_cast<int>(std::floor(L_[k] / dmax)) : 1;
-      // Cap the grid at about two cells per particle per axis product (memory), at least 1.
-      n = std::max(1, std::min(n, 1 << 20));
-      if (sys_.periodic[k] && n < 3)
-        throw std::invalid_argument(fmt::format(
-            "domain: periodic axis {} is {:.6g} long, shorter than 3 largest particle diameters "
-            "({:.6g}); enlarge the domain",
-            k, L_[k], 3.0 * dmax));
-      nc_[k] = n;
-      cw_[k] = L_[k] / n;
-    }
-    // Too many cells for the particle count wastes memory: coarsen uniformly.
-    const double max_cells = std::max(64.0, 2.0 * N_);
-    for (;;) {
-      double total = 1.0;
-      for (int k = 0; k < D; ++k) total *= nc_[k];
-      if (total <= max_cells) break;
-      for (int k = 0; k < D; ++k) {
-        const int n = std::max(sys_.periodic[k] ? 3 : 1, static_cast<int>(nc_[k] * 0.8));
-        nc_[k] = n;
-        cw_[k] = L_[k] / n;
-      }
-    }
-    stride_[0] = 1;
-    for (int k = 1; k < D; ++k) stride_[k] = stride_[k - 1] * nc_[k - 1];
-    ncells_total_ = stride_[D - 1] * nc_[D - 1];
-    // Linear offsets of the 3^D neighbour cells, and of the 3^(D-1) cells of each face layer.
-    offsets_all_.clear();
-    for (auto& l : offsets_layer_) l.clear();
-    for (int m = 0; m < ipow3(D); ++m) {
-      int off = 0, rest = m;
-      std::array<int, D> o{};
-      for (int k = 0; k < D; ++k) {
-        o[k] = rest % 3 - 1;
-        rest /= 3;
-        off += o[k] * stride_[k];
-      }
-      offsets_all_.push_back(off);
-      for (int k = 0; k < D; ++k)
-        if (o[k] != 0) offsets_layer_[2 * k + (o[k] > 0)].push_back(off);
-    }
-    head_.assign(ncells_total_, -1);
-    next_.assign(N_, -1);
-    if constexpr (Hybrid) {
-      cblo_.assign(N_, Vec<D>::Constant(kNever));  // empty: the first substep relocates
-      cbhi_.assign(N_, Vec<D>::Constant(-kNever));
-    }
-    for (int i = 0; i < N_; ++i) {
-      for (int k = 0; k < D; ++k) {
-        int c = static_cast<int>(std::floor((hot_[i].x[k] - lo_[k]) / cw_[k]));
-        cold_[i].cell[k] = std::clamp(c, 0, nc_[k] - 1);
-      }
-      cell_insert(i);
-    }
-  }
-  int linear(const std::array<int, D>& c) const {
-    int l = 0;
-    for (int k = 0; k < D; ++k) l += c[k] * stride_[k];
-    return l;
-  }
-  void cell_insert(int i) {
-    const int l = linear(cold_[i].cell);
-    next_[i] = head_[l];
-    head_[l] = i;
-  }
-  void cell_remove(int i) {
-    // Cells hold a particle or two: walking the list is cheaper than a back link per particle.
-    int* link = &head_[linear(cold_[i].cell)];
-    while (*link != i) link = &next_[*link];
-    *link = next_[i];
-  }
-
-  // Visits the particles j != i of the cells around i's cell, f(j, shift) with the image shift
-  // that brings j next to i. With layer_axis < 0 these are all 3^D cells; else only the layer one
-  // cell further along layer_axis in direction layer_dir (the cells that just came into range
-  // after a cell crossing).
-  template <class F>
-  void for_neighbours(int i, F&& f, int layer_axis = -1, int layer_dir = 0) const {
-    const std::array<int, D> c = cold_[i].cell;
-    // Fast path: a cell away from the grid's faces has its neighbours at fixed linear offsets.
-    bool interior = true;
-    for (int k = 0; k < D; ++k) interior = interior && c[k] >= 1 && c[k] < nc_[k] - 1;
-    if (interior) {
-      const int lin = linear(c);
-      const auto& offs = layer_axis < 0 ? offsets_all_ : offsets_layer_[2 * layer_axis + (layer_dir > 0)];
-      const Vec<D> zero = Vec<D>::Zero();
-      // Collect first, prefetching each neighbour's state, then test: the misses of a large
-      // system overlap instead of following one another.
-      constexpr int kBuf = 128;
-      int buf[kBuf];
-      int n = 0;
-      for (const int off : offs)
-        for (int j = head_[lin + off]; j >= 0; j = next_[j]) {
-          if (j == i) continue;
-          if (n < kBuf) {
-            __builtin_prefetch(&hot_[j]);
-            buf[n++] = j;
-          } else {
-            f(j, zero);
-          }
-        }
-      for (int m = 0; m < n; ++m) f(buf[m], zero);
-      return;
-    }
-    std::array<int, 3> nk[D];
-    std::array<double, 3> sk[D];
-    std::array<int, D> count{};
-    for (int k = 0; k < D; ++k) {
-      const int olo = (k == layer_axis) ? layer_dir : -1;
-      const int ohi = (k == layer_axis) ? layer_dir : 1;
-      for (int o = olo; o <= ohi; ++o) {
-        int cc = c[k] + o;
-        double s = 0.0;
-        if (cc < 0) {
-          if (!sys_.periodic[k]) continue;
-          cc += nc_[k];
-          s = -L_[k];
-        } else if (cc >= nc_[k]) {
-          if (!sys_.periodic[k]) continue;
-          cc -= nc_[k];
-          s = L_[k];
-        }
-        nk[k][count[k]] = cc * stride_[k];
-        sk[k][count[k]] = s;
-        ++count[k];
-      }
-    }
-    auto cell = [&](int lin, const Vec<D>& shift) {
-      for (int j = head_[lin]; j >= 0; j = next_[j])
-        if (j != i) f(j, shift);
-    };
-    visit_stencil(nk, sk, count, cell);
-  }
-
-  // Calls cell(l, shift) for every combination of the per-axis neighbour cells nk[k][0..count[k])
-  // (linear offsets, summed) and image shifts sk[k][...] (for_neighbours, soft_grid_neighbours).
-  template <class Cell>
-  static void visit_stencil(const std::array<int, 3> (&nk)[D], const std::array<double, 3> (&sk)[D],
-                            const std::array<int, D>& count, Cell&& cell) {
-    if constexpr (D == 2) {
-      for (int a = 0; a < count[0]; ++a)
-        for (int b = 0; b < count[1]; ++b) cell(nk[0][a] + nk[1][b], Vec<D>(sk[0][a], sk[1][b]));
-    } else {
-      for (int a = 0; a < count[0]; ++a)
-        for (int b = 0; b < count[1]; ++b)
-          for (int e = 0; e < count[2]; ++e)
-            cell(nk[0][a] + nk[1][b] + nk[2][e], Vec<D>(sk[0][a], sk[1][b], sk[2][e]));
-    }
-  }
-
-  // ---- motion ---------------------------------------------------------------------------------
-  void advance(int i, double t) {
-    if constexpr (Hybrid) {
-      if (mode_[i] == kSoft || mode_[i] == kAsleep) return;  // moved by the substeps
-    }
-    Hot<D>& h = hot_[i];
-    const double dt = t - h.t;
-    if (dt == 0.0) return;
-    if (gravity_) {
-      h.x += h.v * dt + (0.5 * dt * dt) * g_;
-      h.v += g_ * dt;
-    } else {
-      h.x += h.v * dt;
-    }
-    h.t = t;
-  }
-
-  // ---- prediction -----------------------------------------------------------------------------
-  // Each particle keeps two predictions: its earliest pair or wall event (ev_*) and its next cell
-  // crossing (cross_*); the queue holds the earlier of the two. A crossing does not change the
-  // particle's course, so afterwards only the cells that came into range need scanning.
-
-  // Earliest cell-face crossing of particle i (at time `now`).
-  void predict_crossing(int i, double now) {
-    const Hot<D>& h = hot_[i];
-    double best = kNever;
-    std::uint8_t aux = 0;
-    for (int k = 0; k < D; ++k) {
-      const int c = cold_[i].cell[k];
-      const double lo = (c == 0) ? lo_[k] : lo_[k] + c * cw_[k];
-      const double hi_face = (c == nc_[k] - 1) ? hi_[k] : lo_[k] + (c + 1) * cw_[k];
-      bool up = false;
-      double dt;
-      if (g_[k] == 0.0) {  // straight flight along this axis: the face ahead, never behind
-        const double vk = h.v[k];
-        up = vk > 0.0;
-        dt = vk > 0.0 ? (hi_face - h.x[k]) / vk : vk < 0.0 ? (lo - h.x[k]) / vk : kNever;
-        if (dt < 0.0) dt = 0.0;  // already past the face by round-off
-      } else {
-        dt = slab_exit_time(h.x[k], h.v[k], g_[k], lo, hi_face, up);
-      }
-      if (dt < best) {
-        best = dt;
-        aux = static_cast<std::uint8_t>(2 * k + (up ? 1 : 0));
-      }
-    }
-    cold_[i].cross_t = now + best;
-    cold_[i].aux = aux;
-  }
-
-  // Tests the neighbours of i (all, or one layer) and keeps the earliest pair event if it beats
-  // the current best (best, type, partner).
-  // Hybrid: soft, pending and sleeping neighbours are skipped (a hard particle joins the soft set
-  // before it touches one) and a soft or sleeping one makes i an interface particle.
-  void test_pairs(int i, double now, double& best, std::uint8_t& type, int& partner, int layer_axis = -1,
-                  int layer_dir = 0) {
-    const Hot<D>& hi = hot_[i];
-    const Vec<D> xi = hi.x, vi = hi.v;
-    const double Ri = hi.R;
-    for_neighbours(
-        i,
-        [&](int j, const Vec<D>& shift) {
-          if constexpr (Hybrid) {
-            if (mode_[j] != kHard) {
-              if (mode_[j] != kPending) mark_interface(i);
-              return;
-            }
-          }
-          const Hot<D>& hj = hot_[j];
-          const double dtj = now - hj.t;
-          Vec<D> r = xi - hj.x - shift - hj.v * dtj;
-          Vec<D> v = vi - hj.v;
-          if (gravity_) {
-            r -= (0.5 * dtj * dtj) * g_;
-            v -= g_ * dtj;
-          }
-          const double dt = pair_collision_time(r, v, Ri + hj.R, best);
-          if (dt < best) {
-            best = dt;
-            type = kPair;
-            partner = j;
-          }
-        },
-        layer_axis, layer_dir);
-  }
-
-  void schedule(int i) { queue_->set(i, std::min(cold_[i].ev_t, cold_[i].cross_t)); }
-
-  // Full prediction for particle i, which must be at time `now`: crossing, walls, all pairs.
-  void predict(int i, double now) {
-    if constexpr (Hybrid) iface_next_[i] = 0.0;  // its course changed: capture check at the next substep
-    predict_crossing(i, now);
-    const Hot<D>& h = hot_[i];
-    double best = kNever;
-    std::uint8_t type = kNone;
-    int partner = -1;
-    const std::size_t nw = shapes_.size();
-    for (std::size_t w = 0; w < nw; ++w) {
-      const WallShape<D>& wall = *shapes_[w];
-      if (bracketed_walls_ && wall.bracketed()) continue;  // after the pairs (below)
-      const double dt = wall.impact_time(h.x, h.v, g_, h.R, now, kNever);
-      if (dt < best) {
-        best = dt;
-        type = kWall;
-        partner = static_cast<int>(w);
-      }
-    }
-    test_pairs(i, now, best, type, partner);
-    // Bracketed walls (an oscillating plane): root search stopped at the earliest event found so
-    // far. A wall impact cut off this way lies beyond an event whose handling re-predicts i (a
-    // collision of i, or a stale pair event), so it is never lost.
-    if (bracketed_walls_)
-      for (std::size_t w = 0; w < nw; ++w) {
-        const WallShape<D>& wall = *shapes_[w];
-        if (!wall.bracketed()) continue;
-        const double dt = wall.impact_time(h.x, h.v, g_, h.R, now, best);
-        if (dt < best) {
-          best = dt;
-          type = kWall;
-          partner = static_cast<int>(w);
-        }
-      }
-    cold_[i].ev_t = now + best;
-    cold_[i].type = type;
-    cold_[i].partner = partner;
-    if (type == kPair) cold_[i].pcount = cold_[partner].counter;
-    schedule(i);
-  }
-
-  // After i crossed into a new cell along `axis` (dir = +1 / -1): new crossing, and pairs with the
-  // layer of cells that came into range, against the stored earliest pair/wall event. The stored
-  // event stays correct: if its partner has since changed course, the event is stale and its pop
-  // triggers a full prediction; any collision of i with a particle that changed course is found
-  // by that particle.
-  void predict_after_crossing(int i, double now, int axis, int dir) {
-    predict_crossing(i, now);
-    const double stored = cold_[i].ev_t - now;
-    double best = stored;
-    std::uint8_t type = cold_[i].type;
-    int partner = cold_[i].partner;
-    test_pairs(i, now, best, type, partner, axis, dir);
-    // Note the new partner may be the stored one with a new time (a stale event with it).
-    if (best < stored) {
-      cold_[i].partner = partner;
-      cold_[i].type = type;
-      cold_[i].pcount = cold_[partner].counter;
-      cold_[i].ev_t = now + best;
-    }
-    schedule(i);
-  }
-
-  double restitution(int mi, int mj, double u) const {
-    const auto& a = sys_.materials[mi].restitution;
-    if (mi == mj) return a(u);
-    return mixed_restitution(a, sys_.materials[mj].restitution, u);
-  }
-
-  // Collapse detector and TC bookkeeping for a particle that just collided at `now`.
-  void note_collision(int i) {
-    if (now_ - cold_[i].last < window_) {
-      if (++cold_[i].rapid >= set_.collapse_count && status_.empty()) {
-        status_ = "collapse";
-        message_ = fmt::format(
-            "inelastic collapse: particle {} had {} consecutive collisions less than {:.3g} "
-            "apart, at t = {:.17g}; set run.tc > 0 (TC model) to make such collisions elastic",
-            i, cold_[i].rapid, window_, now_);
-      }
-    } else {
-      cold_[i].rapid = 0;
-    }
-    cold_[i].last = now_;
-  }
-
-  void handle(int i, double t) {
-    if constexpr (Hybrid) {
-      if (mode_[i] != kHard) return;  // an event left from before a switch (never scheduled)
-    }
-    if (cold_[i].cross_t <= cold_[i].ev_t) {
-      advance(i, t);
-      ++counts_.cell;
-      const int k = cold_[i].aux / 2;
-      const bool up = cold_[i].aux & 1;
-      cell_remove(i);
-      int c = cold_[i].cell[k] + (up ? 1 : -1);
-      if (c < 0 || c >= nc_[k]) {
-        if (!sys_.periodic[k]) {
-          cell_insert(i);
-          status_ = "escaped";
-          message_ = fmt::format(
-              "particle {} left the domain through the {} face of axis {} at t = {:.17g} "
-              "(position {:.6g}); add a wall there or make the axis periodic",
-              i, up ? "upper" : "lower", k, t, hot_[i].x[k]);
-          return;
-        }
-        c = up ? 0 : nc_[k] - 1;
-        hot_[i].x[k] += up ? -L_[k] : L_[k];
-      }
-      cold_[i].cell[k] = c;
-      cell_insert(i);
-      predict_after_crossing(i, t, k, up ? 1 : -1);
-      return;
-    }
-    switch (cold_[i].type) {
-      case kPair: {
-        const int j = cold_[i].partner;
-        advance(i, t);
-        if (cold_[j].counter != cold_[i].pcount) {  // partner changed course: re-predict
-          ++counts_.stale;
-          predict(i, t);
-          return;
-        }
-        advance(j, t);
-        if constexpr (Hybrid) {
-          if (soft_rule_pair(i, j, t)) return;
-        }
-        collide_pair(i, j);
-        predict(i, t);
-        predict(j, t);
-        return;
-      }
-      case kWall: {
-        advance(i, t);
-        if constexpr (Hybrid) {
-          if (soft_rule_wall(i, cold_[i].partner, t)) return;
-        }
-        collide_wall(i, cold_[i].partner);
-        predict(i, t);
-        return;
-      }
-      default:
-        return;
-    }
-  }
-
-  void collide_pair(int i, int j) {
-    Hot<D>& a = hot_[i];
-    Hot<D>& b = hot_[j];
-    Vec<D> r = a.x - b.x;
-    min_image(r);
-    const double dist = r.norm();
-    const Vec<D> n = r / dist;
-    const double u = (a.v - b.v).dot(n);
-    if (!(u < 0.0)) {
-      // Touching without a normal approach (the predictor saw approach at round-off level): a
-      // contact without impact, the zero-time limit of a collapsing group. It counts towards
-      // the collapse detector, so that a run cannot repeat this event forever at one instant.
-      ++counts_.stale;
-      ++cold_[i].counter;
-      ++cold_[j].counter;
-      note_collision(i);
-      note_collision(j);
-      return;
-    }
-    double e = all_elastic_ ? 1.0 : restitution(cold_[i].mat, cold_[j].mat, -u);
-    if (set_.tc > 0.0 && (now_ - cold_[i].last < set_.tc || now_ - cold_[j].last < set_.tc)) e = 1.0;
-    CollisionRecord<D> rec;
-    const bool log = !collision_observers_.empty();
-    if (log) {
-      rec.vi_before = a.v;
-      rec.vj_before = b.v;
-      fill_spins(rec, i, j, /*before=*/true);
-    }
-    const double J = rough_ && rough_rules_.is_rough(cold_[i].mat, cold_[j].mat)
-                         ? rough_pair(i, j, n, e)
-                         : smooth_pair_collision(a.v, b.v, mass(i), mass(j), n, e);
-    virial_ += J * dist;  // r_ij . dp_i with dp_i = J n
-    ++cold_[i].counter;
-    ++cold_[j].counter;
-    ++counts_.pair;
-    note_collision(i);
-    note_collision(j);
-    if (log) {
-      rec.time = now_;
-      rec.kind = EventKind::PairCollision;
-      rec.i = static_cast<std::uint32_t>(i);
-      rec.j = static_cast<std::uint32_t>(j);
-      rec.mi = mass(i);
-      rec.mj = mass(j);
-      rec.e = e;
-      rec.normal = n;
-      rec.vi_after = a.v;
-      rec.vj_after = b.v;
-      fill_spins(rec, i, j);
-      for (auto* o : collision_observers_) o->on_collision(rec);
-    }
-  }
-
-  // Whether a bracketed wall's predicted impact of i at time t is a checkpoint (the search stopped
-  // short of the wall: the gap is still open), re-predicted by the caller, not a collision.
-  bool wall_checkpoint(int i, const WallShape<D>& wall, const WallPoint<D>& c) const {
-    return wall.bracketed() && c.gap > 1e-9 * (hot_[i].R + wall.stroke());
-  }
-
-  // Collision with a wall, infinitely heavy, at rest or moving at u (its surface velocity at the
-  // contact point): the normal relative velocity (v - u).n is reversed with the restitution at the
-  // relative normal speed. The record carries the wall's velocity as vj (before = after; zero for
-  // a wall at rest).
-  void collide_wall(int i, int w) {
-    Hot<D>& a = hot_[i];
-    const auto& wall = sys_.walls[w];
-    const WallPoint<D> c = wall.geometry().at(a.x, a.R, now_);
-    if (wall_checkpoint(i, wall.geometry(), c)) return;
-    const Vec<D>& u = c.velocity;
-    const Vec<D>& normal = c.normal;
-    const double un = (a.v - u).dot(normal);
-    if (!(un < 0.0)) {
-      // Resting on the wall within round-off (gravity presses it in, no normal speed left):
-      // the zero-time limit of a bouncing sequence. It counts towards the collapse detector so
-      // that a run without a remedy stops instead of repeating this event forever.
-      note_collision(i);
-      return;
-    }
-    double e = restitution(cold_[i].mat, wall.material, -un);
-    if (set_.tc > 0.0 && now_ - cold_[i].last < set_.tc) e = 1.0;
-    CollisionRecord<D> rec;
-    const bool log = !collision_observers_.empty();
-    if (log) {
-      rec.vi_before = a.v;
-      fill_spins(rec, i, -1, /*before=*/true);
-    }
-    if (rough_ && rough_rules_.is_rough(cold_[i].mat, wall.material))
-      rough_wall(i, wall, normal, u, e);
-    else
-      smooth_moving_wall_collision(a.v, mass(i), normal, u, e);
-    ++cold_[i].counter;
-    ++counts_.wall;
-    note_collision(i);
-    if (log) {
-      rec.time = now_;
-      rec.kind = EventKind::WallCollision;
-      rec.i = static_cast<std::uint32_t>(i);
-      rec.j = static_cast<std::uint32_t>(w);
-      rec.mi = mass(i);
-      rec.e = e;
-      rec.normal = normal;
-      rec.vi_after = a.v;
-      rec.vj_before = u;
-      rec.vj_after = u;
-      fill_spins(rec, i, -1);
-      for (auto* o : collision_observers_) o->on_collision(rec);
-    }
-  }
-
-  // The spins of i (and j >= 0) into the record's before or after fields.
-  void fill_spins(CollisionRecord<D>& rec, int i, int j, bool before = false) const {
-    if (sys_.w.empty()) return;
-    (before ? rec.wi_before : rec.wi_after) = sys_.w[i];
-    if (j >= 0) (before ? rec.wj_before : rec.wj_after) = sys_.w[j];
-  }
-
-  // ---- rough hard spheres (contact/rough.hpp; rules per material pair: engine/rough_rules.hpp) --
-  // Smooth scenes never reach these: collide_pair / collide_wall test rough_ first, so a
-  // frictionless run pays one predictable branch per collision and carries no spins.
-  void setup_rough(const RoughRules* given) {
-    rough_rules_ = given ? *given : make_rough_rules(sys_.materials);
-    rough_ = rough_rules_.any;
-    if (rough_ && sys_.w.size() != static_cast<std::size_t>(N_)) sys_.w.assign(N_, Spin<D>::Zero());
-  }
-
-  RoughBody<D> rough_body(int i) const {
-    RoughBody<D> b;
-    b.v = hot_[i].v;
-    b.w = sys_.w[i];
-    b.mass = mass(i);
-    b.radius = hot_[i].R;
-    b.q = inertia_factor<D>();
-    return b;
-  }
-
-  // Rough binary collision of i and j (both at now_, touching with unit normal n from j to i);
-  // returns the normal impulse J_n (the virial's r_ij . dp_i = |r_ij| J_n).
-  double rough_pair(int i, int j, const Vec<D>& n, double e) {
-    const RoughResult<D> r = rough_pair_collision<D>(rough_body(i), rough_body(j), n, e,
-                                                     rough_rules_.rule(cold_[i].mat, cold_[j].mat));
-    hot_[i].v = r.v_i;
-    hot_[j].v = r.v_j;
-    sys_.w[i] = r.w_i;
-    sys_.w[j] = r.w_j;
-    return r.normal_impulse;
-  }
-
-  // Rough collision of i with a wall moving at u (zero when static).
-  void rough_wall(int i, const Wall<D>& wall, const Vec<D>& normal, const Vec<D>& u, double e) {
-    const RoughResult<D> r = rough_wall_collision<D>(rough_body(i), normal, e,
-                                                     rough_rules_.rule(cold_[i].mat, wall.material), u);
-    hot_[i].v = r.v_i;
-    sys_.w[i] = r.w_i;
-  }
-
-  bool rough_ = false;       // some material pair is rough (spins are carried and changed)
-  RoughRules rough_rules_;   // per material pair (particle-particle and particle-wall)
-
-  // All particles at time t (moved virtually, stored state untouched).
-  void emit_snapshot(double t) {
-    Snapshot<D> snap;
-    snap.time = t;
-    snap.x.resize(N_);
-    snap.v.resize(N_);
-    snap.radius.resize(N_);
-    for (int i = 0; i < N_; ++i) {
-      const Hot<D>& h = hot_[i];
-      const double dt = moved_by_events(i) ? t - h.t : 0.0;
-      snap.x[i] = h.x + h.v * dt + (0.5 * dt * dt) * g_;
-      snap.v[i] = h.v + g_ * dt;
-      snap.radius[i] = h.R;
-    }
-    snap.w = sys_.w;
-    if constexpr (Hybrid) {
-      snap.mode.resize(N_);
-      for (int i = 0; i < N_; ++i) snap.mode[i] = mode_[i] == kPending ? std::uint8_t{kHard} : mode_[i];
-      snap.cluster = soft_clusters();
-    }
-    for (auto* o : snapshot_observers_) o->on_snapshot(snap);
-  }
-
-  void emit_sample(double t, double interval) {
-    ++counts_.samples;
-    if (observers_.empty()) {
-      virial_ = 0.0;
-      return;
-    }
-    ThermoSample s;
-    s.time = t;
-    double mv2 = 0.0, pe = 0.0, rot = 0.0;
-    for (int i = 0; i < N_; ++i) {
-      const Hot<D>& h = hot_[i];
-      const double dt = moved_by_events(i) ? t - h.t : 0.0;
-      Vec<D> v = h.v, x = h.x;
-      if (dt != 0.0) {
-        x += h.v * dt + (0.5 * dt * dt) * g_;
-        v += g_ * dt;
-      }
-      mv2 += mass(i) * v.squaredNorm();
-      if (gravity_) pe -= mass(i) * g_.dot(x);
-    }
-    if (!sys_.w.empty())
-      for (int i = 0; i < N_; ++i)
-        rot += 0.5 * inertia_factor<D>() * mass(i) * hot_[i].R * hot_[i].R * sys_.w[i].squaredNorm();
-    s.kinetic_energy = 0.5 * mv2;
-    s.rotational_energy = rot;
-    s.potential_energy = pe;
-    s.temperature = N_ > 0 ? mv2 / (D * N_) : 0.0;
-    s.collisions = counts_.collisions();
-    if constexpr (Hybrid) {
-      s.elastic_energy = soft_elastic_energy();
-      s.soft = soft_.size() + asleep_;
-      s.collisions += hstats_soft_begun_;
-    }
-    // P V = N T + (1/(d dt)) sum_collisions r_ij . dp_i  (REFERENCES 2.3; Smallenburg's EDMD).
-    // The kinetic part uses the mean of the kinetic energies at the two ends of the interval.
-    const double ke_mean = prev_ke_ < 0.0 ? s.kinetic_energy : 0.5 * (prev_ke_ + s.kinetic_energy);
-    const double V = sys_.volume();
-    s.pressure = (2.0 * ke_mean / D + (interval > 0.0 ? virial_ / (D * interval) : 0.0)) / V;
-    prev_ke_ = s.kinetic_energy;
-    virial_ = 0.0;
-    for (auto* o : observers_) o->on_sample(s);
-  }
-
-  void measure_overlaps(RunResult<D>& res) {
-    double worst = 0.0, worst_rel = 0.0;
-    for (int i = 0; i < N_; ++i) {
-      const Hot<D>& a = hot_[i];
-      for_neighbours(i, [&](int j, const Vec<D>& shift) {
-        if (j < i) return;
-        const double sigma = a.R + hot_[j].R;
-        const double ov = sigma - (a.x - hot_[j].x - shift).norm();
-        if (ov > worst) worst = ov;
-        if (ov / sigma > worst_rel) worst_rel = ov / sigma;
-      });
-      for (const WallShape<D>* wall : shapes_) {
-        const double ov = -wall->at(a.x, a.R, res.time).gap;
-        if (ov > worst) worst = ov;
-        if (ov / a.R > worst_rel) worst_rel = ov / a.R;
-      }
-    }
-    res.max_overlap = worst;
-    res.max_overlap_relative = worst_rel;
-  }
-
-  // ==== hybrid ==================================================================================
-  // Everything below is compiled only with Hybrid = true (engine/hybrid.hpp states the rule).
   // Soft particles carry the TDM state of engine/tdm.cpp's scheme: between substeps vh_ holds
   // v(t - h/2), acc_ a(t - h) (for the predicted velocity of the dashpots), f_/tq_ the force and
   // torque at t; hot_.x and hot_.t the position and time of the last substep, hot_.v and sys_.w the
@@ -868,10 +107,42 @@ class EdmEngine {
 
   // Whether i moves ballistically between its events (hard or pending), i.e. its stored state may
   // be extrapolated in time; a soft or sleeping particle is at its last substep.
-  bool moved_by_events(int i) const {
-    if constexpr (Hybrid) return mode_[i] == kHard || mode_[i] == kPending;
+  bool moved_by_events(int i) const { return mode_[i] == kHard || mode_[i] == kPending; }
+  bool predicted(int i) const { return mode_[i] == kHard; }
+
+  // ---- hooks of the EDM core ----
+  void ext_setup() { hybrid_setup(given_settings_, given_plan_); }
+  double ext_cell_margin() const { return lskin_; }  // the cells hold every particle within the list skin
+  void ext_cells_ready(double rmax) {
+    sg_w_ = 2.0 * rmax + lskin_;
+    for (int k = 0; k < D; ++k) any_periodic_ = any_periodic_ || sys_.periodic[k];
+    hybrid_arrays();
+    cblo_.assign(N_, Vec<D>::Constant(kNever));  // empty: the first substep relocates
+    cbhi_.assign(N_, Vec<D>::Constant(-kNever));
+  }
+  void ext_start() { hybrid_start(); }
+  // Soft, pending and sleeping neighbours take no part in a hard particle's pair predictions (a
+  // hard particle joins the soft set before it touches one); a soft or sleeping one makes it an
+  // interface particle.
+  bool ext_skip_neighbour(int i, int j) {
+    if (mode_[j] == kHard) return false;
+    if (mode_[j] != kPending) mark_interface(i);
     return true;
   }
+  void ext_on_predict(int i) { iface_next_[i] = 0.0; }  // its course changed: capture check at the next substep
+  bool ext_divert_pair(int i, int j, double t) { return soft_rule_pair(i, j, t); }
+  bool ext_divert_wall(int i, int w, double t) { return soft_rule_wall(i, w, t); }
+  void ext_snapshot(Snapshot<D>& snap) {
+    snap.mode.resize(N_);
+    for (int i = 0; i < N_; ++i) snap.mode[i] = mode_[i] == kPending ? std::uint8_t{kHard} : mode_[i];
+    snap.cluster = soft_clusters();
+  }
+  void ext_sample(ThermoSample& s) {
+    s.elastic_energy = soft_elastic_energy();
+    s.soft = soft_.size() + asleep_;
+    s.collisions += hstats_soft_begun_;
+  }
+  void ext_result(RunResult<D>& res) { hybrid_result(res); }
 
   struct PairEntry {
     int i, j;
@@ -912,7 +183,10 @@ class EdmEngine {
     rest_speed2_ = hs.rest_speed * hs.rest_speed;
     // Clusters are checked four times per rest time.
     sleep_every_ = std::max<std::uint64_t>(1, static_cast<std::uint64_t>(0.25 * rest_time_ / h_));
-    substep_id_ = N_ + 3;
+    substep_id_ = this->add_system_event("substep", [this](double t) {
+      substep(t);
+      return status_.empty();
+    });
     if (rot_ && sys_.w.empty()) sys_.w.assign(N_, Spin<D>::Zero());
     uniform_ = N_ > 0;
     for (int i = 1; i < N_ && uniform_; ++i)
@@ -1093,17 +367,6 @@ class EdmEngine {
       const int j = recent_[i][k];
       if (j < 0 || mode_[j] != kHard) continue;
       if (t - recent_t_[i][k] < kstab_ * plan_.contact_time) make_pending(j, t, kByCluster);
-    }
-  }
-
-  // The periodic image of a separation vector nearest to zero.
-  void min_image(Vec<D>& r) const {
-    for (int k = 0; k < D; ++k) {
-      if (!sys_.periodic[k]) continue;
-      if (r[k] > 0.5 * L_[k])
-        r[k] -= L_[k];
-      else if (r[k] < -0.5 * L_[k])
-        r[k] += L_[k];
     }
   }
 
@@ -2183,61 +1446,9 @@ class EdmEngine {
   std::vector<std::uint8_t> fz_cand_, fz_lost_, watch_flag_;
   double wall_t_ = 0.0;  // the time of the soft forces being computed
 
-  System<D> sys_;  // materials, walls, geometry (particle arrays released)
-  EdmSettings set_;
-  int N_;
-  std::optional<Queue> queue_;  // built once the input arrays are released
-  std::vector<Observer<D>*> observers_, collision_observers_, snapshot_observers_;
-  Vec<D> g_, lo_, hi_, L_;
-  bool gravity_ = false, all_elastic_ = false;
-  std::vector<const WallShape<D>*> shapes_;  // sys_.walls[w].shape
-  bool bracketed_walls_ = false;  // some wall's impact time is a bracketing search
-  double window_ = 0.0;
-  double now_ = 0.0;
-
-  template <class T>
-  using Array = std::vector<T, HugePageAllocator<T>>;
-  Array<Hot<D>> hot_;
-  std::vector<double> mass_factor_;  // per material: density * ball_volume(1)
-  // Everything else the event loop reads or writes about a particle, in one cache line, so that
-  // handling an event touches two lines per particle however large the system.
-  struct alignas(D == 3 ? 64 : 8) Cold {
-    double ev_t = kNever;     // earliest pair or wall event (absolute time)
-    double cross_t = kNever;  // next cell crossing (absolute time)
-    double last = -kNever;    // time of the last collision (TC model, collapse detector)
-    int partner = -1;         // pair partner or wall index of ev_t
-    std::uint32_t pcount = 0; // partner's collision counter when predicted
-    std::uint32_t counter = 0;// own collision counter
-    int rapid = 0;            // consecutive rapid collisions (collapse detector)
-    std::array<int, D> cell{};
-    int mat = 0;
-    std::uint8_t type = kNone;  // kind of ev_t
-    std::uint8_t aux = 0;       // crossing: 2 * axis + up
-  };
-  Array<Cold> cold_;
-
-  std::array<int, D> nc_{}, stride_{};
-  Vec<D> cw_;
-  int ncells_total_ = 0;
-  Array<int> head_, next_;
-  std::vector<int> offsets_all_;
-  std::array<std::vector<int>, 2 * D> offsets_layer_;
-  static constexpr int ipow3(int d) { return d == 0 ? 1 : 3 * ipow3(d - 1); }
-
-  EventCounts counts_;
-  double virial_ = 0.0;
-  double prev_ke_ = -1.0;
-  std::string status_, message_;
 };
 
 }  // namespace
-
-template <int D>
-RunResult<D> run_edm(System<D> system, const EdmSettings& settings, QueueKind queue,
-                     const std::vector<Observer<D>*>& observers, const RoughRules* rough) {
-  if (queue == QueueKind::Heap) return EdmEngine<D, HeapQueue>(std::move(system), settings, observers, rough).run();
-  return EdmEngine<D, CalendarQueue>(std::move(system), settings, observers, rough).run();
-}
 
 template <int D>
 SoftPlan hybrid_preflight(const System<D>& system, const HybridSettings& settings) {
@@ -2249,7 +1460,7 @@ SoftPlan hybrid_preflight(const System<D>& system, const HybridSettings& setting
 template <int D>
 RunResult<D> run_hybrid(System<D> system, const EdmSettings& edm, const HybridSettings& hybrid,
                         const std::vector<Observer<D>*>& observers, const SoftPlan* plan) {
-  return EdmEngine<D, CalendarQueue, true>(std::move(system), edm, observers, nullptr, &hybrid, plan).run();
+  return HybridEngine<D>(std::move(system), edm, hybrid, plan, observers).run();
 }
 
 template SoftPlan hybrid_preflight<2>(const System<2>&, const HybridSettings&);
@@ -2258,10 +1469,5 @@ template RunResult<2> run_hybrid<2>(System<2>, const EdmSettings&, const HybridS
                                     const std::vector<Observer<2>*>&, const SoftPlan*);
 template RunResult<3> run_hybrid<3>(System<3>, const EdmSettings&, const HybridSettings&,
                                     const std::vector<Observer<3>*>&, const SoftPlan*);
-
-template RunResult<2> run_edm<2>(System<2>, const EdmSettings&, QueueKind, const std::vector<Observer<2>*>&,
-                                 const RoughRules*);
-template RunResult<3> run_edm<3>(System<3>, const EdmSettings&, QueueKind, const std::vector<Observer<3>*>&,
-                                 const RoughRules*);
 
 }  // namespace matep

@@ -382,20 +382,42 @@ inline SoftContact soft_contact(const SoftLaw& law, const PairParams& p) {
   return c;
 }
 
+// The normal force of each law, the one place its formula is written (see SoftContact), before
+// clipping, at overlap delta >= 0 and normal relative velocity vn = -delta' (< 0 approaching).
+template <NormalLaw Law>
+[[gnu::always_inline]] inline double normal_force_law(const SoftContact& c, double delta, double vn) {
+  if constexpr (Law == NormalLaw::Linear) {
+    return c.kn * delta - c.gn * vn;
+  } else if constexpr (Law == NormalLaw::Hertz) {
+    const double s = std::sqrt(delta);
+    return c.kn * delta * s - c.gn * std::sqrt(s) * vn;
+  } else {
+    const double s = std::sqrt(delta);
+    return c.kn * delta * s - c.gn * s * vn;
+  }
+}
+// Its spring part (no dashpot): k_n delta or k_n delta^3/2.
+template <NormalLaw Law>
+inline double elastic_normal_force(const SoftContact& c, double delta) {
+  if constexpr (Law == NormalLaw::Linear) return c.kn * delta;
+  return c.kn * delta * std::sqrt(delta);
+}
+// dF_n/d(delta) of the spring at overlap delta (k_n; 3/2 k_n sqrt(delta) for the Hertzian laws).
+inline double normal_stiffness(const SoftContact& c, double delta) {
+  if (!(delta > 0.0)) return 0.0;
+  return c.normal == NormalLaw::Linear ? c.kn : 1.5 * c.kn * std::sqrt(delta);
+}
+
 // Normal force magnitude along n, before clipping, at overlap delta >= 0 and overlap rate
-// delta' = -v_n.
+// delta' = -v_n (the law chosen at run time).
 inline double normal_force_raw(const SoftContact& c, double delta, double delta_dot) {
   switch (c.normal) {
     case NormalLaw::Linear:
-      return c.kn * delta + c.gn * delta_dot;
-    case NormalLaw::Hertz: {
-      const double s = std::sqrt(delta);
-      return c.kn * delta * s + c.gn * std::sqrt(s) * delta_dot;
-    }
-    case NormalLaw::Viscoelastic: {
-      const double s = std::sqrt(delta);
-      return c.kn * delta * s + c.gn * s * delta_dot;
-    }
+      return normal_force_law<NormalLaw::Linear>(c, delta, -delta_dot);
+    case NormalLaw::Hertz:
+      return normal_force_law<NormalLaw::Hertz>(c, delta, -delta_dot);
+    case NormalLaw::Viscoelastic:
+      return normal_force_law<NormalLaw::Viscoelastic>(c, delta, -delta_dot);
   }
   return 0.0;
 }
@@ -511,20 +533,12 @@ template <int D, NormalLaw Law>
   const double delta = k.delta > 0.0 ? k.delta : 0.0;
   const double vn = k.v.dot(n);
   // Normal force and the tangential coefficients at this overlap (see SoftContact).
-  double fn, kt = c.kt, gt = c.gt;
-  if constexpr (Law == NormalLaw::Linear) {
-    fn = c.kn * delta - c.gn * vn;
-  } else {
+  const double fn = normal_force_law<Law>(c, delta, vn);
+  double kt = c.kt, gt = c.gt;
+  if constexpr (Law != NormalLaw::Linear) {
     const double s = std::sqrt(delta);
     kt *= s;
-    if constexpr (Law == NormalLaw::Hertz) {
-      const double s4 = std::sqrt(s);
-      fn = c.kn * delta * s - c.gn * s4 * vn;
-      gt *= s4;
-    } else {
-      fn = c.kn * delta * s - c.gn * s * vn;
-      gt *= s;
-    }
+    gt *= Law == NormalLaw::Hertz ? std::sqrt(s) : s;
   }
   out.normal_raw = fn;
   out.normal = (c.clip && fn < 0.0) ? 0.0 : fn;

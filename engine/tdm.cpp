@@ -10,6 +10,9 @@
 #include <stdexcept>
 
 #include "contact/soft.hpp"
+#include "engine/soft/forces.hpp"
+#include "engine/soft/springs.hpp"
+#include "engine/soft/verlet.hpp"
 
 namespace matep {
 
@@ -25,14 +28,6 @@ struct Spill {
   std::uint32_t j;
   Vec<D> f;
   Spin<D> t;
-};
-
-// A contact remembered across a neighbour-list rebuild, keyed by the original particle ids
-// (lo < hi; for a wall, hi = wall index) with its tangential spring oriented for lo.
-template <int D>
-struct Memory {
-  std::uint64_t key;
-  Vec<D> xi;
 };
 
 template <int D>
@@ -58,6 +53,8 @@ class TdmEngine {
   };
   void forces(bool fuse);
   template <bool Rot, bool Uniform, NormalLaw Law, bool Fuse>
+  struct RangePolicy;
+  template <bool Rot, bool Uniform, NormalLaw Law, bool Fuse>
   void pair_range(int t);
   template <bool Rot, bool Uniform, NormalLaw Law>
   void wall_contact_force(std::uint32_t e, Acc& acc);
@@ -68,7 +65,7 @@ class TdmEngine {
   // ---- diagnostics ----
   ThermoSample sample(double time);
   Snapshot<D> snapshot(double time) const;
-  Vec<D> v_full(std::size_t i) const { return v_[i] + hdt_ * (f_[i] * minv_[i] + g_); }
+  Vec<D> v_full(std::size_t i) const { return soft::full_step<D>(v_[i], f_[i], minv_[i], g_, hdt_); }
   Spin<D> w_full(std::size_t i) const { return rot_ ? Spin<D>(w_[i] + hdt_ * (tq_[i] * iinv_[i])) : w_[i]; }
   SoftContact pair_coeffs(std::size_t i, std::size_t j) const {
     return uniform_ ? cpair_ : pair_contact(plan_, mat_[i], R_[i], m_[i], mat_[j], R_[j], m_[j]);
@@ -137,6 +134,7 @@ class TdmEngine {
   std::vector<std::uint8_t> boundary_;
   std::vector<std::uint32_t> boundary_list_;
   std::vector<Acc> acc_t_;
+  soft::SpringMemory<D> springs_;  // contacts remembered across a rebuild
 
   std::uint64_t steps_ = 0, rebuilds_ = 0, pair_begun_ = 0, wall_begun_ = 0;
   double max_rel_ = 0.0, max_abs_ = 0.0;
@@ -338,25 +336,15 @@ void TdmEngine<D>::build_stencil() {
 template <int D>
 void TdmEngine<D>::rebuild() {
   ++rebuilds_;
-  // 1. Remember touching contacts by particle ids.
-  std::vector<Memory<D>> mem;
+  // 1. Remember touching contacts by particle ids (engine/soft/springs.hpp).
+  soft::SpringMemory<D>& mem = springs_;
+  mem.clear();
   for (std::size_t i = 0; i < N_ && !off_.empty(); ++i)
-    for (std::uint32_t e = off_[i]; e < off_[i + 1]; ++e) {
-      if (!touch_[e]) continue;
-      const std::uint32_t a = id_[i], b = id_[nb_[e]];
-      const Vec<D> xi = rot_ ? xi_[e] : Vec<D>::Zero();
-      mem.push_back(a < b ? Memory<D>{(std::uint64_t(a) << 32) | b, xi} : Memory<D>{(std::uint64_t(b) << 32) | a, -xi});
-    }
-  std::sort(mem.begin(), mem.end(), [](const auto& p, const auto& q) { return p.key < q.key; });
-  std::vector<Memory<D>> wmem;
+    for (std::uint32_t e = off_[i]; e < off_[i + 1]; ++e)
+      if (touch_[e]) mem.remember_pair(id_[i], id_[nb_[e]], rot_ ? xi_[e] : Vec<D>::Zero());
   for (std::size_t e = 0; e < wl_i_.size(); ++e)
-    if (wl_touch_[e])
-      wmem.push_back({(std::uint64_t(id_[wl_i_[e]]) << 32) | wl_w_[e], rot_ ? wl_xi_[e] : Vec<D>::Zero()});
-  std::sort(wmem.begin(), wmem.end(), [](const auto& p, const auto& q) { return p.key < q.key; });
-  auto recall = [](const std::vector<Memory<D>>& m, std::uint64_t key) -> const Memory<D>* {
-    auto it = std::lower_bound(m.begin(), m.end(), key, [](const Memory<D>& p, std::uint64_t k) { return p.key < k; });
-    return (it != m.end() && it->key == key) ? &*it : nullptr;
-  };
+    if (wl_touch_[e]) mem.remember_wall(id_[wl_i_[e]], wl_w_[e], rot_ ? wl_xi_[e] : Vec<D>::Zero());
+  mem.sort();
 
   // 2. Wrap periodic axes, check the state, bin into cells.
   std::size_t ncell = 1;
@@ -459,16 +447,14 @@ void TdmEngine<D>::rebuild() {
   // Recall touching flags and springs.
   touch_.assign(nb_.size(), 0);
   if (rot_) xi_.assign(nb_.size(), Vec<D>::Zero());
+  Vec<D> spring;
   if (!mem.empty())
     for (std::size_t i = 0; i < N_; ++i)
-      for (std::uint32_t e = off_[i]; e < off_[i + 1]; ++e) {
-        const std::uint32_t a = id_[i], b = id_[nb_[e]];
-        const std::uint64_t key = a < b ? (std::uint64_t(a) << 32) | b : (std::uint64_t(b) << 32) | a;
-        if (const Memory<D>* m = recall(mem, key)) {
+      for (std::uint32_t e = off_[i]; e < off_[i + 1]; ++e)
+        if (mem.recall_pair(id_[i], id_[nb_[e]], spring)) {
           touch_[e] = 1;
-          if (rot_) xi_[e] = a < b ? m->xi : Vec<D>(-m->xi);
+          if (rot_) xi_[e] = spring;
         }
-      }
 
   // 5. Wall list.
   wl_i_.clear();
@@ -485,11 +471,11 @@ void TdmEngine<D>::rebuild() {
     }
   wl_touch_.assign(wl_i_.size(), 0);
   if (rot_) wl_xi_.assign(wl_i_.size(), Vec<D>::Zero());
-  if (!wmem.empty())
+  if (!mem.empty())
     for (std::size_t e = 0; e < wl_i_.size(); ++e)
-      if (const Memory<D>* m = recall(wmem, (std::uint64_t(id_[wl_i_[e]]) << 32) | wl_w_[e])) {
+      if (mem.recall_wall(id_[wl_i_[e]], wl_w_[e], spring)) {
         wl_touch_[e] = 1;
-        if (rot_) wl_xi_[e] = m->xi;
+        if (rot_) wl_xi_[e] = spring;
       }
   for (int t = 0; t < T_; ++t) {
     wlo_[t] = static_cast<std::uint32_t>(std::lower_bound(wl_i_.begin(), wl_i_.end(), lo_[t]) - wl_i_.begin());
@@ -507,176 +493,98 @@ void TdmEngine<D>::rebuild() {
   }
 }
 
-// Pair forces of the particles in thread t's range. Forces on a partner outside the range are
-// spilled; the touching flag counts contacts begun.
-// Normal force of a law known at compile time at overlap delta and normal velocity vn (< 0 while
-// approaching), clipped at zero unless the law may pull (contact/soft.hpp, normal_force()).
-template <NormalLaw Law>
-[[gnu::always_inline]] inline double normal_force_of(const SoftContact& c, double delta, double vn) {
-  double f;
-  if constexpr (Law == NormalLaw::Linear) {
-    f = c.kn * delta - c.gn * vn;
-  } else if constexpr (Law == NormalLaw::Hertz) {
-    const double s = std::sqrt(delta);
-    f = c.kn * delta * s - c.gn * std::sqrt(s) * vn;
-  } else {
-    const double s = std::sqrt(delta);
-    f = c.kn * delta * s - c.gn * s * vn;
-  }
-  return (c.clip && f < 0.0) ? 0.0 : f;
-}
-
+// What the soft path's pair loop (engine/soft/forces.hpp) does differently in TDM: rows are the
+// particles of one thread's range, forces on a particle of another range are spilled (added after
+// the loop in range order), overlaps are tracked for the stability check, and each particle's
+// walls follow its pairs and, with Fuse, its integration (its force is then complete).
 template <int D>
 template <bool Rot, bool Uniform, NormalLaw Law, bool Fuse>
-void TdmEngine<D>::pair_range(int t) {
-  Acc& acc = acc_t_[t];
-  auto& spill = spill_[t];
-  const std::uint32_t lo = lo_[t], hi = hi_[t];
-  const double dt = dt_, hdt = hdt_;
-  std::uint32_t ew = wlo_[t];  // wall entries are sorted by particle
+struct TdmEngine<D>::RangePolicy {
+  static constexpr bool kSleepers = false, kNear = false, kVirial = false;
+  TdmEngine& eng;
+  Acc& acc;
+  std::vector<Spill<D>>& spill;
+  const std::uint32_t lo, hi;
+  std::uint32_t ew;  // wall entries are sorted by particle
+  const std::uint32_t ew_end;
   bool moved = false;
-  // Raw pointers: the force writes below would otherwise make the compiler reload every vector's
-  // data pointer at every use.
-  Vec<D>* const X = x_.data();
-  const Vec<D>* const V = v_.data();
-  const Vec<D>* const AC = acc_.data();
-  Vec<D>* const FF = f_.data();
-  const double* const RR = R_.data();
-  const std::uint32_t* const NB = nb_.data();
-  const std::uint32_t* const OFF = off_.data();
-  const std::uint8_t* const SH = sh_.data();
-  std::uint8_t* const TOUCH = touch_.data();
-  const std::uint8_t* const BND = boundary_.data();
-  const Vec<D>* const SHIFT = shifts_.data();
-  for (std::uint32_t i = lo; i < hi; ++i) {
-    const Vec<D> xi = X[i];
-    const double Ri = RR[i];
-    // i's half-step and predicted velocities are read where a contact needs them (most entries
-    // of a dilute gas are not in contact).
-    Vec<D> fi = Vec<D>::Zero();
-    Spin<D> ti = Spin<D>::Zero();
-    const std::uint32_t end = OFF[i + 1];
-    for (std::uint32_t e = OFF[i]; e < end; ++e) {
-      const std::uint32_t j = NB[e];
-      const Vec<D> dx = xi - X[j] + SHIFT[SH[e]];
-      const double Rs = Ri + RR[j];
-      const double r2 = dx.squaredNorm();
-      if (r2 >= Rs * Rs) {
-        if (TOUCH[e]) {
-          TOUCH[e] = 0;
-          if constexpr (Rot) xi_[e].setZero();
-        }
-        continue;
-      }
-      const double r = std::sqrt(r2);
-      const Vec<D> n = dx * (1.0 / r);
-      const double delta = Rs - r;
-      const Vec<D> vhi = V[i], vpi = V[i] + hdt * AC[i];
-      double onset = -1.0;  // first step of this contact: the part of the step spent in contact
-      if (!TOUCH[e]) {
-        TOUCH[e] = 1;
-        ++acc.new_pair;
-        if (!initial_) onset = onset_fraction(delta, -(vhi - V[j]).dot(n), dt);
-      }
-      if (delta > acc.max_rel * Rs) acc.max_rel = delta / Rs;
-      if (delta > acc.max_abs) acc.max_abs = delta;
-      // The pair's constants: the shared ones unless the particles differ or the contact starts.
-      SoftContact local;
-      const SoftContact* cp = &cpair_;
-      if (!Uniform || onset >= 0.0) {
-        local = Uniform ? cpair_ : pair_coeffs(i, j);
-        if (onset >= 0.0) at_onset<Law>(local, onset);
-        cp = &local;
-      }
-      const SoftContact& c = *cp;
-      // Predicted velocities at the new time: v(t + h/2) + h/2 a(t).
-      const Vec<D> vj = V[j] + hdt * AC[j];
-      Vec<D> F;
-      Spin<D> tj = Spin<D>::Zero();
-      if constexpr (!Rot) {
-        F = normal_force_of<Law>(c, delta, (vpi - vj).dot(n)) * n;
-      } else {
-        const double li = pair_lever_arm(Ri, delta), lj = pair_lever_arm(RR[j], delta);
-        ContactKinematics<D> k;
-        k.delta = delta;
-        k.n = n;
-        const Spin<D> whi = w_[i], wpi = w_[i] + hdt * alpha_[i];
-        k.v = contact_velocity<D>(vpi, wpi, li, vj, w_[j] + hdt * alpha_[j], lj, n);
-        k.dxi = dt * contact_velocity<D>(vhi, whi, li, V[j], w_[j], lj, n);
-        if (onset >= 0.0) k.dxi *= onset;  // the spring stretches only since first touch
-        ContactHistory<D> h{xi_[e]};
-        const ContactForce<D> cf = soft_contact_force_law<D, Law>(c, k, h);
-        xi_[e] = h.xi;
-        F = cf.force;
-        // tau = -l n x F_t on both bodies (contact/soft.hpp conventions).
-        const Spin<D> m = lever_moment<D>(n, cf.tangential);
-        ti -= li * m;
-        tj = -lj * m;
-      }
-      fi += F;
-      if (j >= lo && j < hi) {
-        FF[j] -= F;
-        if constexpr (Rot) tq_[j] += tj;
-      } else {
-        spill.push_back({j, -F, tj});
-      }
+
+  bool onset() const { return !eng.initial_; }
+  const SoftContact& contact(std::uint32_t, std::uint32_t i, std::uint32_t j, SoftContact& scratch) const {
+    if constexpr (Uniform) return eng.cpair_;
+    scratch = eng.pair_coeffs(i, j);
+    return scratch;
+  }
+  void began() { ++acc.new_pair; }
+  void opened(std::uint32_t, std::uint32_t) {}
+  void overlap(double delta, double Rs) {
+    if (delta > acc.max_rel * Rs) acc.max_rel = delta / Rs;
+    if (delta > acc.max_abs) acc.max_abs = delta;
+  }
+  void touching(std::uint32_t, std::uint32_t) {}
+  void near(std::uint32_t, std::uint32_t) {}
+  double near_skin() const { return 0.0; }
+  bool any_asleep() const { return false; }
+  bool asleep(std::uint32_t) const { return false; }
+  double rest_speed2() const { return 0.0; }
+  void wake(std::uint32_t) {}
+  [[gnu::always_inline]] void partner(std::uint32_t j, const Vec<D>& f, const Spin<D>& t) {
+    if (j >= lo && j < hi) {
+      eng.f_[j] += f;
+      if constexpr (Rot) eng.tq_[j] += t;
+    } else {
+      spill.push_back({j, f, t});
     }
-    FF[i] += fi;
-    if constexpr (Rot) tq_[i] += ti;
-    for (; ew < whi_[t] && wl_i_[ew] == i; ++ew) wall_contact_force<Rot, Uniform, Law>(ew, acc);
+  }
+  void virial(const Vec<D>&, const Vec<D>&) {}
+  [[gnu::always_inline]] void row_done(std::uint32_t i) {
+    for (; ew < ew_end && eng.wl_i_[ew] == i; ++ew) eng.wall_contact_force<Rot, Uniform, Law>(ew, acc);
     // Every pair entry has j > i (storage is sorted by cell), so i's force is complete here unless
     // a lower thread range still adds to it: integrate it now and never read it again this step.
     if constexpr (Fuse) {
-      if (!BND[i]) moved |= integrate_one(i);
+      if (!eng.boundary_[i]) moved |= eng.integrate_one(i);
     }
   }
-  acc.moved = moved;
+};
+
+// Pair forces of the particles in thread t's range (the soft path's loop); the touching flag counts
+// contacts begun.
+template <int D>
+template <bool Rot, bool Uniform, NormalLaw Law, bool Fuse>
+[[gnu::flatten]] void TdmEngine<D>::pair_range(int t) {
+  Acc& acc = acc_t_[t];
+  RangePolicy<Rot, Uniform, Law, Fuse> pol{*this, acc, spill_[t], lo_[t], hi_[t], wlo_[t], whi_[t]};
+  soft::Bodies<D> b;
+  b.v = v_.data();
+  b.acc = acc_.data();
+  b.f = f_.data();
+  b.w = w_.data();
+  b.alpha = alpha_.data();
+  b.tq = tq_.data();
+  soft::PairRows<D> rows;
+  rows.off = off_.data();
+  rows.nb = nb_.data();
+  rows.sh = sh_.data();
+  rows.touch = touch_.data();
+  rows.xi = xi_.data();
+  rows.shift = shifts_.data();
+  soft::pair_rows<D, Law, Rot>(soft::Arrays<D>{x_.data(), R_.data()}, b, rows, lo_[t], hi_[t], dt_, pol);
+  acc.moved = pol.moved;
 }
 
 template <int D>
 template <bool Rot, bool Uniform, NormalLaw Law>
 inline void TdmEngine<D>::wall_contact_force(std::uint32_t e, Acc& acc) {
-  const double dt = dt_, hdt = hdt_;
   const std::uint32_t i = wl_i_[e];
-  const WallShape<D>& W = *shapes_[wl_w_[e]];
-  const WallPoint<D> wp = W.at(x_[i], R_[i], wall_t_);
-  const Vec<D>& n = wp.normal;
-  const Vec<D>& u = wp.velocity;
-  const double delta = -wp.gap;
-  if (delta <= 0.0) {
-    if (wl_touch_[e]) {
-      wl_touch_[e] = 0;
-      if constexpr (Rot) wl_xi_[e].setZero();
-    }
-    return;
-  }
-  double onset = -1.0;
-  if (!wl_touch_[e]) {
-    wl_touch_[e] = 1;
-    ++acc.new_wall;
-    if (!initial_) onset = onset_fraction(delta, -(v_[i] - W.surface_velocity(x_[i], R_[i], wall_t_ - hdt)).dot(n), dt);
-  }
+  const int w = static_cast<int>(wl_w_[e]);
+  bool began = false;
+  Vec<D> no_spring = Vec<D>::Zero();
+  const double delta = soft::wall_contact<D, Law, Rot>(
+      *shapes_[w], wall_t_, dt_, !initial_, x_[i], R_[i], v_[i], acc_[i], w_[i], alpha_[i],
+      Uniform ? cwall_[w] : wall_coeffs(w, i), wl_touch_[e], Rot ? wl_xi_[e] : no_spring, began, f_[i], tq_[i]);
+  if (began) ++acc.new_wall;
   if (delta > acc.max_rel * R_[i]) acc.max_rel = delta / R_[i];
   if (delta > acc.max_abs) acc.max_abs = delta;
-  SoftContact c = Uniform ? cwall_[wl_w_[e]] : wall_coeffs(static_cast<int>(wl_w_[e]), i);
-  if (onset >= 0.0) at_onset<Law>(c, onset);
-  const Vec<D> vi = v_[i] + hdt * acc_[i] - u;  // relative to the wall
-  if constexpr (!Rot) {
-    f_[i] += normal_force_of<Law>(c, delta, vi.dot(n)) * n;
-  } else {
-    const double li = wall_lever_arm(R_[i], delta);
-    ContactKinematics<D> k;
-    k.delta = delta;
-    k.n = n;
-    k.v = vi - spin_cross<D>(li * Spin<D>(w_[i] + hdt * alpha_[i]), n);
-    k.dxi = dt * (v_[i] - W.surface_velocity(x_[i], R_[i], wall_t_ - hdt) - spin_cross<D>(li * w_[i], n));
-    if (onset >= 0.0) k.dxi *= onset;
-    ContactHistory<D> h{wl_xi_[e]};
-    const ContactForce<D> cf = soft_contact_force_law<D, Law>(c, k, h);
-    wl_xi_[e] = h.xi;
-    f_[i] += cf.force;
-    tq_[i] += contact_torque<D>(n, cf.tangential, li);
-  }
 }
 
 template <int D>
@@ -738,39 +646,14 @@ void TdmEngine<D>::forces(bool fuse) {
   }
 }
 
-// Closes step n for particle i (v(t) from its new force) and opens step n + 1:
+// Closes step n for particle i (v(t) from its new force) and opens step n + 1 (engine/soft/verlet.hpp):
 // v(t + h/2) = v(t - h/2) + h a(t), x += h v(t + h/2). Returns whether it has moved more than half
 // the skin since the last rebuild (a non-finite position counts as moved).
 template <int D>
 [[gnu::always_inline]] inline bool TdmEngine<D>::integrate_one(std::uint32_t i) {
-  // Written out by component: this runs once per particle and step, and its memory traffic is
-  // most of a dilute gas's cost (a force that is already zero is not written again).
-  const double dt = dt_, mi = minv_[i];
-  double* f = f_[i].data();
-  double* a = acc_[i].data();
-  double* v = v_[i].data();
-  double* x = x_[i].data();
-  const double* x0 = x0_[i].data();
-  bool nonzero = false;
-  double d2 = 0.0;
-  for (int k = 0; k < D; ++k) {
-    nonzero |= f[k] != 0.0;
-    const double ak = f[k] * mi + g_[k];
-    a[k] = ak;
-    v[k] += dt * ak;
-    x[k] += dt * v[k];
-    const double dk = x[k] - x0[k];
-    d2 += dk * dk;
-  }
-  if (nonzero)
-    for (int k = 0; k < D; ++k) f[k] = 0.0;
-  if (rot_) {
-    const Spin<D> al = tq_[i] * iinv_[i];
-    tq_[i].setZero();
-    alpha_[i] = al;
-    w_[i] += dt * al;
-  }
-  return !(d2 <= half_skin2_);
+  const bool moved = soft::kick_drift<D>(f_[i], acc_[i], v_[i], x_[i], x0_[i], minv_[i], g_, dt_, half_skin2_);
+  if (rot_) soft::kick_spin(tq_[i], alpha_[i], w_[i], iinv_[i], dt_);
+  return moved;
 }
 
 template <int D>
@@ -917,9 +800,9 @@ RunResult<D> TdmEngine<D>::run() {
       wl_xi_ = wxi0;
       check_stable();
       // v holds v(t - h/2) between steps.
-      for (std::size_t i = 0; i < N_; ++i) v_[i] -= hdt_ * (f_[i] * minv_[i] + g_);
+      for (std::size_t i = 0; i < N_; ++i) soft::start_half_step(v_[i], f_[i], minv_[i], g_, hdt_);
       if (rot_)
-        for (std::size_t i = 0; i < N_; ++i) w_[i] -= hdt_ * (tq_[i] * iinv_[i]);
+        for (std::size_t i = 0; i < N_; ++i) soft::start_half_step_spin(w_[i], tq_[i], iinv_[i], hdt_);
       emit(0, nsteps == 0);
     }
   }

@@ -15,6 +15,10 @@
 #include "contact/soft.hpp"
 #include "contact/timestep.hpp"
 #include "engine/edm/core.hpp"
+#include "engine/soft/forces.hpp"
+#include "engine/soft/pair_list.hpp"
+#include "engine/soft/springs.hpp"
+#include "engine/soft/verlet.hpp"
 #include "engine/soft_plan.hpp"
 #include "scheduler/calendar_queue.hpp"
 
@@ -117,6 +121,13 @@ class HybridEngine final : public edm::EdmCore<D, CalendarQueue, HybridEngine<D>
     sg_w_ = 2.0 * rmax + lskin_;
     for (int k = 0; k < D; ++k) any_periodic_ = any_periodic_ || sys_.periodic[k];
     hybrid_arrays();
+    for (std::size_t sft = 0; sft < shifts_.size(); ++sft) {  // index sum_k (s_k + 1) 3^k, s_k in {-1, 0, 1}
+      std::size_t r = sft;
+      for (int k = 0; k < D; ++k) {
+        shifts_[sft][k] = (static_cast<double>(r % 3) - 1.0) * L_[k];
+        r /= 3;
+      }
+    }
     cblo_.assign(N_, Vec<D>::Constant(kNever));  // empty: the first substep relocates
     cbhi_.assign(N_, Vec<D>::Constant(-kNever));
   }
@@ -144,12 +155,7 @@ class HybridEngine final : public edm::EdmCore<D, CalendarQueue, HybridEngine<D>
   }
   void ext_result(RunResult<D>& res) { hybrid_result(res); }
 
-  struct PairEntry {
-    int i, j;
-    std::uint32_t c;  // the pair's contact constants: ctab_[c]
-    std::uint8_t touch;
-    Vec<D> xi;        // tangential spring
-  };
+  using PairEntry = soft::PairEntry<D>;  // owner i, partner j, constants ctab_[c], image shift sh
   struct WallEntry {
     int i, w;
     std::uint32_t c;
@@ -211,7 +217,7 @@ class HybridEngine final : public edm::EdmCore<D, CalendarQueue, HybridEngine<D>
     vh_.assign(N_, Vec<D>::Zero());
     acc_.assign(N_, Vec<D>::Zero());
     f_.assign(N_, Vec<D>::Zero());
-    disp_.assign(N_, Vec<D>::Zero());
+    x0_.assign(N_, Vec<D>::Zero());
     if (rot_) {
       wh_.assign(N_, Spin<D>::Zero());
       alpha_.assign(N_, Spin<D>::Zero());
@@ -401,7 +407,7 @@ class HybridEngine final : public edm::EdmCore<D, CalendarQueue, HybridEngine<D>
     vh_[i] = hot_[i].v - hdt_ * g_;
     acc_[i] = g_;
     f_[i].setZero();
-    disp_[i].setZero();
+    x0_[i] = hot_[i].x;
     if (rot_) {
       wh_[i] = sys_.w[i];
       alpha_[i].setZero();
@@ -446,14 +452,15 @@ class HybridEngine final : public edm::EdmCore<D, CalendarQueue, HybridEngine<D>
   void add_entries(int i, double t) {
     const Vec<D> xi = hot_[i].x;
     const double Ri = hot_[i].R;
+    pairs_.begin_row(ui(i));
     for_neighbours(i, [&](int j, const Vec<D>& shift) {
       if (mode_[j] != kSoft && mode_[j] != kAsleep) return;
       const double cut = Ri + hot_[j].R + lskin_;
       if ((xi - hot_[j].x - shift).squaredNorm() >= cut * cut) return;
-      const int a = std::min(i, j), b = std::max(i, j);
-      pe_.push_back({a, b, pair_contact_of(a, b), 0, Vec<D>::Zero()});
+      pairs_.add({ui(i), ui(j), pair_contact_of(i, j), image_of(shift), 0, Vec<D>::Zero()});
       if (mode_[j] == kAsleep) watch(j);
     });
+    pairs_.end_row();
     add_walls_only(i, t);
   }
 
@@ -491,13 +498,16 @@ class HybridEngine final : public edm::EdmCore<D, CalendarQueue, HybridEngine<D>
     }
   };
 
-  using Springs = std::vector<std::pair<std::uint64_t, Vec<D>>>;
-  static std::uint64_t key(int a, int b) {
-    return (static_cast<std::uint64_t>(a) << 32) | static_cast<std::uint32_t>(b);
-  }
-  static const Vec<D>* find_spring(const Springs& s, std::uint64_t k) {
-    const auto it = std::lower_bound(s.begin(), s.end(), k, [](const auto& a, std::uint64_t b) { return a.first < b; });
-    return it != s.end() && it->first == k ? &it->second : nullptr;
+  static std::uint32_t ui(int i) { return static_cast<std::uint32_t>(i); }
+  static std::uint64_t key(std::uint32_t a, std::uint32_t b) { return (std::uint64_t(a) << 32) | b; }
+  // A pair's key whatever its orientation.
+  static std::uint64_t pkey(std::uint32_t a, std::uint32_t b) { return a < b ? key(a, b) : key(b, a); }
+  // The index of the image shift (shifts_) that brings j next to i, for the shift a neighbour walk
+  // reports (x_j + shift is the image next to x_i; the list stores -shift).
+  static std::uint8_t image_of(const Vec<D>& shift) {
+    int s = 0;
+    for (int k = 0, p = 1; k < D; ++k, p *= 3) s += ((shift[k] > 0.0) ? 0 : (shift[k] < 0.0) ? 2 : 1) * p;
+    return static_cast<std::uint8_t>(s);
   }
 
   // All entries anew, the springs of touching contacts carried over by particle ids: every pair
@@ -506,47 +516,39 @@ class HybridEngine final : public edm::EdmCore<D, CalendarQueue, HybridEngine<D>
   // with an awake neighbour are watched.
   [[gnu::flatten]] void rebuild_entries(double t) {
     ++hstats_.rebuilds;
-    Springs& springs = springs_;
-    Springs& wsprings = wsprings_;
-    springs.clear();
-    wsprings.clear();
-    for (const auto& e : pe_)
-      if (e.touch) springs.push_back({key(e.i, e.j), e.xi});
+    soft::SpringMemory<D>& mem = springs_;
+    mem.clear();
+    pairs_.for_each([&](const PairEntry& e) {
+      if (e.touch) mem.remember_pair(e.i, e.j, e.xi);
+    });
     for (const auto& e : we_)
-      if (e.touch) wsprings.push_back({key(e.i, e.w), e.xi});
-    pe_.clear();
+      if (e.touch) mem.remember_wall(ui(e.i), ui(e.w), e.xi);
+    mem.sort();
+    pairs_.clear();
     we_.clear();
-    auto by_key = [](const auto& a, const auto& b) { return a.first < b.first; };
-    std::sort(springs.begin(), springs.end(), by_key);
-    std::sort(wsprings.begin(), wsprings.end(), by_key);
     for (const int j : watched_) watch_flag_[j] = 0;
     watched_.clear();
     soft_grid_build();
     for (const int i : soft_) {
-      disp_[i].setZero();
+      x0_[i] = hot_[i].x;
       const Vec<D> xi = hot_[i].x;
       const double Ri = hot_[i].R;
+      pairs_.begin_row(ui(i));
       soft_grid_neighbours(i, [&](int j, const Vec<D>& shift) {
         const std::uint8_t m = mode_[j];
         if (!((m == kSoft && j > i) || m == kAsleep)) return;
         const double cut = Ri + hot_[j].R + lskin_;
         if ((xi - hot_[j].x - shift).squaredNorm() >= cut * cut) return;
-        const int a = std::min(i, j), b = std::max(i, j);
-        PairEntry e{a, b, pair_contact_of(a, b), 0, Vec<D>::Zero()};
-        if (const Vec<D>* x = find_spring(springs, key(a, b))) {
-          e.touch = 1;
-          e.xi = *x;
-        }
-        pe_.push_back(e);
+        PairEntry e{ui(i), ui(j), pair_contact_of(i, j), image_of(shift), 0, Vec<D>::Zero()};
+        if (mem.recall_pair(ui(i), ui(j), e.xi)) e.touch = 1;
+        pairs_.add(e);
         if (m == kAsleep) watch(j);
       });
+      pairs_.end_row();
       const std::size_t w0 = we_.size();
       add_walls_only(i, t);
       for (std::size_t k = w0; k < we_.size(); ++k)
-        if (const Vec<D>* x = find_spring(wsprings, key(i, we_[k].w))) {
-          we_[k].touch = 1;
-          we_[k].xi = *x;
-        }
+        if (mem.recall_wall(ui(i), ui(we_[k].w), we_[k].xi)) we_[k].touch = 1;
     }
     dirty_ = false;
   }
@@ -689,8 +691,9 @@ class HybridEngine final : public edm::EdmCore<D, CalendarQueue, HybridEngine<D>
   // tq[k] (a sleeper's balance at sleep, fz_base_, or its awake neighbours' share, fz_mix_).
   void add_share(std::vector<Vec<D>>& f, std::vector<Spin<D>>& tq, int k, const PairEntry& e,
                  const StaticForce& sf, double s) {
-    f[k] += k == e.i ? Vec<D>(s * sf.f) : Vec<D>(-s * sf.f);
-    if (rot_) tq[k] += s * (k == e.i ? sf.ti : sf.tj);
+    const bool own = ui(k) == e.i;
+    f[k] += own ? Vec<D>(s * sf.f) : Vec<D>(-s * sf.f);
+    if (rot_) tq[k] += s * (own ? sf.ti : sf.tj);
   }
   void add_walls_only(int i, double t) {
     for (std::size_t w = 0; w < sys_.walls.size(); ++w)
@@ -710,8 +713,14 @@ class HybridEngine final : public edm::EdmCore<D, CalendarQueue, HybridEngine<D>
     std::array<int, D> c{};
     for (int k = 0; k < D; ++k) {
       if (sys_.periodic[k]) {
-        if (h.x[k] >= hi_[k]) h.x[k] -= L_[k];
-        else if (h.x[k] < lo_[k]) h.x[k] += L_[k];
+        // A wrap changes the image shifts of its list entries: rebuild before the forces.
+        if (h.x[k] >= hi_[k]) {
+          h.x[k] -= L_[k];
+          dirty_ = true;
+        } else if (h.x[k] < lo_[k]) {
+          h.x[k] += L_[k];
+          dirty_ = true;
+        }
       } else if (!(h.x[k] >= lo_[k] - h.R && h.x[k] <= hi_[k] + h.R) && status_.empty()) {
         status_ = std::isfinite(h.x[k]) ? "escaped" : "unstable";
         message_ = std::isfinite(h.x[k])
@@ -741,44 +750,24 @@ class HybridEngine final : public edm::EdmCore<D, CalendarQueue, HybridEngine<D>
   void substep(double t) {
     if ((++hstats_.substeps & 0x3ff) == 0)  // progress: events so far, substeps included
       for (auto* o : observers_) o->on_progress(t, counts_.total() + hstats_.substeps);
-    // 1. Drift the awake soft particles from t - h to t with the forces of t - h. (Raw pointers
-    // and local copies: the stores would otherwise make the compiler reload every vector's data
-    // pointer and every member at each use.)
+    // 1. Drift the awake soft particles from t - h to t with the forces of t - h (engine/soft/verlet.hpp).
     const double h = h_, lim2 = 0.25 * lskin_ * lskin_;
     const Vec<D> g = g_;
     Hot<D>* const HOT = hot_.data();
-    Vec<D>* const FF = f_.data();
-    Vec<D>* const AC = acc_.data();
-    Vec<D>* const VH = vh_.data();
-    Vec<D>* const DISP = disp_.data();
-    const double* const MINV = minv_.data();
     const Vec<D>* const BLO = cblo_.data();
     const Vec<D>* const BHI = cbhi_.data();
     bool dirty = false;
     for (const int i : soft_) {
-      const Vec<D> a = FF[i] * MINV[i] + g;
-      AC[i] = a;
-      FF[i].setZero();
-      const Vec<D> v = VH[i] + h * a;
-      VH[i] = v;
-      const Vec<D> dx = h * v;
-      const Vec<D> x = HOT[i].x + dx;
-      HOT[i].x = x;
+      dirty |= soft::kick_drift<D>(f_[i], acc_[i], vh_[i], HOT[i].x, x0_[i], minv_[i], g, h, lim2);
       HOT[i].t = t;
-      const Vec<D> d = DISP[i] + dx;
-      DISP[i] = d;
-      dirty |= d.squaredNorm() > lim2;
+      const Vec<D>& x = HOT[i].x;
       // Still inside the box of its cell (edge cells of closed axes: up to the escape limit;
       // NaN fails the test): no cell update.
       if (!((x.array() >= BLO[i].array()).all() && (x.array() < BHI[i].array()).all())) relocate(i, t);
     }
     if (dirty) dirty_ = true;
     if (rot_)
-      for (const int i : soft_) {
-        alpha_[i] = tq_[i] * iinv_[i];
-        tq_[i].setZero();
-        wh_[i] += h * alpha_[i];
-      }
+      for (const int i : soft_) soft::kick_spin(tq_[i], alpha_[i], wh_[i], iinv_[i], h);
     hstats_.soft_particle_steps += soft_.size();
     if (!status_.empty()) return;
     // 2. Joins: pending particles, then hard particles within the skin of a soft one.
@@ -790,6 +779,7 @@ class HybridEngine final : public edm::EdmCore<D, CalendarQueue, HybridEngine<D>
     // 3. Entries, 4. forces at t.
     if (dirty_) rebuild_entries(t);
     soft_forces(t);
+    if (t == 0.0) start_soft_state();
     if (asleep_ > 0 && !watched_.empty()) wake_loaded(t);
     // 5. Full-step velocities; release and rest.
     double vmax2 = 0.0;
@@ -801,7 +791,7 @@ class HybridEngine final : public edm::EdmCore<D, CalendarQueue, HybridEngine<D>
     double* const LAST = last_contact_.data();
     freed_.clear();
     for (const int i : soft_) {
-      const Vec<D> v = VH5[i] + hdt * (F5[i] * MINV[i] + g);
+      const Vec<D> v = soft::full_step<D>(VH5[i], F5[i], minv_[i], g, hdt);
       HOT[i].v = v;
       vmax2 = std::max(vmax2, v.squaredNorm());
       if (TOUCHING[i]) LAST[i] = t;
@@ -878,10 +868,9 @@ class HybridEngine final : public edm::EdmCore<D, CalendarQueue, HybridEngine<D>
     iface_.resize(keep);
   }
 
-  // Contact forces of the soft set at time t (engine/tdm.cpp's pair_range and wall_contact_force,
-  // with the law chosen at run time): dashpots at the predicted velocity v(t - h/2) + h/2 a(t - h),
-  // the spring grown by h times the half-step contact velocity, the first-step weight of a contact
-  // that begins inside the step (onset_fraction, at_onset in contact/soft.hpp).
+  // Contact forces of the soft set at time t: the soft path's pair loop and wall contacts
+  // (engine/soft/forces.hpp) with the hybrid's policy. A contact present at the run's first force
+  // evaluation (t = 0: particles that start overlapping) began before the run: no onset weight.
   void soft_forces(double t) {
     wall_t_ = t;
     switch (plan_.law) {
@@ -897,191 +886,111 @@ class HybridEngine final : public edm::EdmCore<D, CalendarQueue, HybridEngine<D>
     }
   }
 
+  // The run's first force evaluation (t = 0, particles that start overlapping) gives a(0) only, as in
+  // TDM (engine/soft/verlet.hpp start_half_step): v(-h/2) = v(0) - h/2 a(0), springs unstretched.
+  void start_soft_state() {
+    for (const int i : soft_) {
+      vh_[i] = hot_[i].v;
+      soft::start_half_step(vh_[i], f_[i], minv_[i], g_, hdt_);
+      if (rot_) {
+        wh_[i] = sys_.w[i];
+        soft::start_half_step_spin(wh_[i], tq_[i], iinv_[i], hdt_);
+      }
+    }
+    for (auto& x : pairs_.xi) x.setZero();
+    for (auto& e : we_) e.xi.setZero();
+  }
+
+  // What the soft path's loop does differently here: rows are the soft particles' (any order),
+  // touching and nearby particles are flagged for the release rule, a sleeping end (rest rule) is
+  // pushed by the springs only and wakes when approached fast or when a contact opens, and the
+  // virial of the contact forces adds to the hard collisions'.
+  template <bool Rot>
+  struct SoftPolicy {
+    static constexpr bool kSleepers = true, kNear = true, kVirial = true;
+    const SoftContact* C;
+    const std::uint32_t* cidx;
+    std::uint8_t* TOUCHING;
+    std::uint8_t* NEAR;
+    const std::uint8_t* MODE;
+    std::uint8_t* LOST;
+    Vec<D>* FF;
+    Spin<D>* TQ;
+    double skin, rest2;
+    bool onset_ok, sleepers;
+    std::uint64_t begun = 0;
+    double vir = 0.0;
+
+    bool onset() const { return onset_ok; }
+    const SoftContact& contact(std::uint32_t e, std::uint32_t, std::uint32_t, SoftContact&) const { return C[cidx[e]]; }
+    void began() { ++begun; }
+    void opened(std::uint32_t i, std::uint32_t j) {
+      // A sleeper that loses a contact wakes (its support may be gone).
+      if (sleepers) {
+        if (MODE[i] == kAsleep) LOST[i] = 1;
+        if (MODE[j] == kAsleep) LOST[j] = 1;
+      }
+    }
+    void overlap(double, double) {}
+    void touching(std::uint32_t i, std::uint32_t j) { TOUCHING[i] = TOUCHING[j] = 1; }
+    void near(std::uint32_t i, std::uint32_t j) { NEAR[i] = NEAR[j] = 1; }  // release needs no particle within the capture skin
+    double near_skin() const { return skin; }
+    bool any_asleep() const { return sleepers; }
+    bool asleep(std::uint32_t i) const { return MODE[i] == kAsleep; }
+    double rest_speed2() const { return rest2; }
+    void wake(std::uint32_t k) { LOST[k] = 1; }
+    [[gnu::always_inline]] void partner(std::uint32_t j, const Vec<D>& f, const Spin<D>& t) {
+      FF[j] += f;
+      if constexpr (Rot) TQ[j] += t;
+    }
+    void virial(const Vec<D>& F, const Vec<D>& dx) { vir += F.dot(dx); }
+    void row_done(std::uint32_t) {}
+  };
+
   template <NormalLaw Law, bool Rot>
   [[gnu::flatten]] void soft_forces_law() {
-    const double h = h_, hdt = hdt_;
-    double virial = 0.0;
-    const SoftContact* const C = ctab_.data();
-    const bool any_asleep = asleep_ > 0;
-    // Raw pointers and local copies, as in substep().
-    Hot<D>* const HOT = hot_.data();
-    const Vec<D>* const VH = vh_.data();
-    const Vec<D>* const AC = acc_.data();
-    Vec<D>* const FF = f_.data();
-    Spin<D>* const TQ = tq_.data();
-    const Spin<D>* const WH = wh_.data();
-    const Spin<D>* const AL = alpha_.data();
-    std::uint8_t* const TOUCHING = touching_.data();
-    std::uint8_t* const NEAR = near_.data();
-    const std::uint8_t* const MODE = mode_.data();
-    std::uint8_t* const LOST = fz_lost_.data();
-    const double skin = skin_, rest2 = rest_speed2_;
-    const bool periodic = any_periodic_;
-    std::uint64_t begun = 0;
-    for (auto& e : pe_) {
-      const int i = e.i, j = e.j;
-      Vec<D> dx = HOT[i].x - HOT[j].x;
-      if (periodic) min_image(dx);
-      const double Rs = HOT[i].R + HOT[j].R;
-      const double r2 = dx.squaredNorm();
-      const double cut = Rs + skin;  // release needs no particle within the capture skin
-      if (r2 < cut * cut) NEAR[i] = NEAR[j] = 1;
-      if (r2 >= Rs * Rs) {
-        if (e.touch) {
-          e.touch = 0;
-          e.xi.setZero();
-          // A sleeper that loses a contact wakes (its support may be gone).
-          if (any_asleep) {
-            if (MODE[i] == kAsleep) LOST[i] = 1;
-            if (MODE[j] == kAsleep) LOST[j] = 1;
-          }
-        }
-        continue;
-      }
-      const double r = std::sqrt(r2);
-      const Vec<D> n = dx * (1.0 / r);
-      const double delta = Rs - r;
-      const SoftContact* cp = &C[e.c];
-      SoftContact local;
-      double onset = -1.0;
-      if (!e.touch) {
-        e.touch = 1;
-        ++begun;
-        onset = onset_fraction(delta, -(VH[i] - VH[j]).dot(n), h);
-        if (onset >= 0.0 && Law == NormalLaw::Linear) {
-          local = *cp;
-          at_onset<Law>(local, onset);
-          cp = &local;
-        }
-      }
-      const SoftContact& c = *cp;
-      TOUCHING[i] = TOUCHING[j] = 1;
-      const Vec<D> vpi = VH[i] + hdt * AC[i], vpj = VH[j] + hdt * AC[j];
-      Vec<D> F;
-      // A sleeper (rest rule) is pushed by the springs only: its wake test compares the elastic
-      // load of its awake neighbours with their share at sleep (wake_loaded).
-      const bool mixed = any_asleep && (MODE[i] == kAsleep || MODE[j] == kAsleep);
-      if (mixed) {  // a sleeper that a touching grain approaches faster than rest_speed wakes
-        const double un = (VH[i] - VH[j]).dot(n);  // < 0: approaching (n points from j to i)
-        if (un < 0.0 && un * un > rest2) LOST[MODE[i] == kAsleep ? i : j] = 1;
-      }
-      Vec<D> Fel;
-      Spin<D> mel = Spin<D>::Zero();
-      if constexpr (!Rot) {
-        const double vn = (vpi - vpj).dot(n);
-        double fn;
-        if constexpr (Law == NormalLaw::Linear) {
-          fn = c.kn * delta - c.gn * vn;
-        } else {
-          const double sq = std::sqrt(delta);
-          fn = c.kn * delta * sq - c.gn * (Law == NormalLaw::Hertz ? std::sqrt(sq) : sq) * vn;
-        }
-        if (c.clip && fn < 0.0) fn = 0.0;
-        F = fn * n;
-        if (mixed) Fel = elastic_normal<Law>(c, delta) * n;
-      } else {
-        const double li = pair_lever_arm(HOT[i].R, delta), lj = pair_lever_arm(HOT[j].R, delta);
-        ContactKinematics<D> k;
-        k.delta = delta;
-        k.n = n;
-        k.v = contact_velocity<D>(vpi, WH[i] + hdt * AL[i], li, vpj, WH[j] + hdt * AL[j], lj, n);
-        k.dxi = h * contact_velocity<D>(VH[i], WH[i], li, VH[j], WH[j], lj, n);
-        if (onset >= 0.0) k.dxi *= onset;
-        ContactHistory<D> hist{e.xi};
-        const ContactForce<D> cf = soft_contact_force_law<D, Law>(c, k, hist);
-        e.xi = hist.xi;
-        F = cf.force;
-        const Spin<D> m = lever_moment<D>(n, cf.tangential);
-        if (mixed) {
-          const double kt = Law == NormalLaw::Linear ? c.kt : c.kt * std::sqrt(delta);
-          const Vec<D> ft = -kt * e.xi;
-          Fel = elastic_normal<Law>(c, delta) * n + ft;
-          mel = lever_moment<D>(n, ft);
-          TQ[i] -= li * (MODE[i] == kAsleep ? mel : m);
-          TQ[j] -= lj * (MODE[j] == kAsleep ? mel : m);
-        } else {
-          TQ[i] -= li * m;
-          TQ[j] -= lj * m;
-        }
-      }
-      if (mixed) {
-        FF[i] += MODE[i] == kAsleep ? Fel : F;
-        FF[j] -= MODE[j] == kAsleep ? Fel : F;
-      } else {
-        FF[i] += F;
-        FF[j] -= F;
-      }
-      virial += F.dot(dx);
-    }
+    const double h = h_;
+    const bool onset_ok = wall_t_ > 0.0;
+    SoftPolicy<Rot> pol{ctab_.data(), pairs_.c.data(), touching_.data(), near_.data(), mode_.data(),
+                        fz_lost_.data(), f_.data(), tq_.data(), skin_, rest_speed2_, onset_ok, asleep_ > 0};
+    soft::Bodies<D> b;
+    b.v = vh_.data();
+    b.acc = acc_.data();
+    b.f = f_.data();
+    b.w = wh_.data();
+    b.alpha = alpha_.data();
+    b.tq = tq_.data();
+    soft::pair_rows<D, Law, Rot>(soft::Records<D, Hot<D>>{hot_.data()}, b, pairs_.as_rows(shifts_.data()), 0,
+                                 static_cast<std::uint32_t>(pairs_.rows()), h, pol);
+    std::uint64_t begun = pol.begun;
+    const Spin<D> no_spin = Spin<D>::Zero();
+    Spin<D> tq_none = Spin<D>::Zero();
     for (auto& e : we_) {
       const int i = e.i;
-      const WallShape<D>& W = *shapes_[e.w];
-      const WallPoint<D> wp = W.at(HOT[i].x, HOT[i].R, wall_t_);
-      const Vec<D>& n = wp.normal;
-      const double delta = -wp.gap;
-      if (delta <= 0.0) {
-        if (e.touch) {
-          e.touch = 0;
-          e.xi.setZero();
-        }
-        continue;
-      }
-      SoftContact c = C[e.c];
-      double onset = -1.0;
-      if (!e.touch) {
-        e.touch = 1;
-        ++begun;
-        onset = onset_fraction(delta, -(VH[i] - W.surface_velocity(HOT[i].x, HOT[i].R, wall_t_ - hdt)).dot(n), h);
-        if (onset >= 0.0) at_onset<Law>(c, onset);
-      }
-      TOUCHING[i] = 1;
-      const Vec<D> vi = VH[i] + hdt * AC[i] - wp.velocity;
-      if constexpr (!Rot) {
-        FF[i] += normal_force(c, delta, -vi.dot(n)) * n;
-      } else {
-        const double li = wall_lever_arm(HOT[i].R, delta);
-        ContactKinematics<D> k;
-        k.delta = delta;
-        k.n = n;
-        k.v = vi - spin_cross<D>(li * Spin<D>(WH[i] + hdt * AL[i]), n);
-        k.dxi = h * (VH[i] - W.surface_velocity(HOT[i].x, HOT[i].R, wall_t_ - hdt) - spin_cross<D>(li * WH[i], n));
-        if (onset >= 0.0) k.dxi *= onset;
-        ContactHistory<D> hist{e.xi};
-        const ContactForce<D> cf = soft_contact_force_law<D, Law>(c, k, hist);
-        e.xi = hist.xi;
-        FF[i] += cf.force;
-        TQ[i] += contact_torque<D>(n, cf.tangential, li);
-      }
+      bool began = false;
+      const double delta = soft::wall_contact<D, Law, Rot>(
+          *shapes_[e.w], wall_t_, h, onset_ok, hot_[i].x, hot_[i].R, vh_[i], acc_[i], Rot ? wh_[i] : no_spin,
+          Rot ? alpha_[i] : no_spin, ctab_[e.c], e.touch, e.xi, began, f_[i], Rot ? tq_[i] : tq_none);
+      begun += began;
+      if (delta > 0.0) touching_[i] = 1;
     }
     hstats_soft_begun_ += begun;
-    virial_ += virial * h;  // impulse times distance over the substep, as the hard collisions
-  }
-
-  // dF_n/d(delta) of the spring at overlap delta (k_n; 3/2 k_n sqrt(delta) for the Hertzian laws).
-  static double normal_stiffness(const SoftContact& c, double delta) {
-    if (!(delta > 0.0)) return 0.0;
-    return c.normal == NormalLaw::Linear ? c.kn : 1.5 * c.kn * std::sqrt(delta);
-  }
-
-  // The spring part of the normal force at overlap delta.
-  template <NormalLaw Law>
-  static double elastic_normal(const SoftContact& c, double delta) {
-    if constexpr (Law == NormalLaw::Linear) return c.kn * delta;
-    return c.kn * delta * std::sqrt(delta);
+    virial_ += pol.vir * h;  // impulse times distance over the substep, as the hard collisions
   }
 
   // Elastic energy stored in the soft contacts (engine/tdm.cpp sample()).
   double soft_elastic_energy() const {
     double el = 0.0;
     auto stored = [](const SoftContact& c, double delta, const Vec<D>& xi) { return stored_energy<D>(c, delta, xi); };
-    for (const auto* list : {&pe_, &pe_sleep_})
-    for (const auto& e : *list) {
-      if (!e.touch) continue;
+    auto pair = [&](const PairEntry& e) {
+      if (!e.touch) return;
       Vec<D> dx = hot_[e.i].x - hot_[e.j].x;
       min_image(dx);
       const double delta = hot_[e.i].R + hot_[e.j].R - dx.norm();
       if (delta > 0.0) el += stored(ctab_[e.c], delta, e.xi);
-    }
+    };
+    pairs_.for_each(pair);
+    for (const auto& e : pe_sleep_) pair(e);
     for (const auto* list : {&we_, &we_sleep_})
     for (const auto& e : *list) {
       if (!e.touch) continue;
@@ -1099,12 +1008,13 @@ class HybridEngine final : public edm::EdmCore<D, CalendarQueue, HybridEngine<D>
       while (parent[a] != a) a = parent[a] = parent[parent[a]];
       return a;
     };
-    for (const auto* list : {&pe_, &pe_sleep_})
-      for (const auto& e : *list)
-        if (e.touch) {
-          const int a = find(e.i), b = find(e.j);
-          if (a != b) parent[std::max(a, b)] = std::min(a, b);
-        }
+    auto pair = [&](const PairEntry& e) {
+      if (!e.touch) return;
+      const int a = find(static_cast<int>(e.i)), b = find(static_cast<int>(e.j));
+      if (a != b) parent[std::max(a, b)] = std::min(a, b);
+    };
+    pairs_.for_each(pair);
+    for (const auto& e : pe_sleep_) pair(e);
     std::vector<std::int32_t> id(N_, -1), label(N_, -1);
     std::int32_t next = 0;
     for (int i = 0; i < N_; ++i) {
@@ -1140,7 +1050,7 @@ class HybridEngine final : public edm::EdmCore<D, CalendarQueue, HybridEngine<D>
   // A sleeper i keeps, from the moment it fell asleep, its static net contact force and torque
   // B_i (springs only: it was at rest) and the wake threshold W_i. Its contacts with sleepers and
   // walls are frozen in pe_sleep_/we_sleep_ (constant: neither end moves); its contacts with awake
-  // particles are evaluated at every substep in pe_ (it is an immovable body for them), and their
+  // particles are evaluated at every substep in pairs_ (it is an immovable body for them), and their
   // sum is compared with M_i, the part of B_i they carried: M_i = B_i - (the frozen part), updated
   // whenever a contact moves between the two lists. The net force on i is then
   // f_mixed + B_i - M_i, and i wakes when it differs from B_i by more than W_i.
@@ -1175,16 +1085,16 @@ class HybridEngine final : public edm::EdmCore<D, CalendarQueue, HybridEngine<D>
     }
     if (!any) return;
     // 1. The static net contact force of each candidate and its mean contact force.
-    for (const auto& e : pe_) {
-      if (!e.touch || !(fz_cand_[e.i] || fz_cand_[e.j])) continue;
+    pairs_.for_each([&](const PairEntry& e) {
+      if (!e.touch || !(fz_cand_[e.i] || fz_cand_[e.j])) return;
       const StaticForce sf = static_pair_force(e);
       const double k_n = normal_stiffness(ctab_[e.c], sf.delta);
-      for (const int k : {e.i, e.j}) {
+      for (const int k : {static_cast<int>(e.i), static_cast<int>(e.j)}) {
         if (!fz_cand_[k]) continue;
         add_share(fz_base_, fz_tbase_, k, e, sf, 1.0);
         fz_scale_[k] += k_n;
       }
-    }
+    });
     for (const auto& e : we_) {
       if (!e.touch || !fz_cand_[e.i]) continue;
       const StaticForce sf = static_wall_force(e, t);
@@ -1219,26 +1129,21 @@ class HybridEngine final : public edm::EdmCore<D, CalendarQueue, HybridEngine<D>
     // 3. The new sleepers' entries: a pair of two sleepers is frozen (set aside if touching, with
     // its static force leaving the mixed part of an older sleeper's balance); a pair with an awake
     // particle stays, and its static force is the new sleeper's mixed part.
-    std::size_t kp = 0;
-    for (const auto& e : pe_) {
+    pairs_.filter([&](const PairEntry& e) {
       const bool ni = fz_cand_[e.i], nj = fz_cand_[e.j];
-      if (!ni && !nj) {
-        pe_[kp++] = e;
-        continue;
-      }
+      if (!ni && !nj) return true;
       const StaticForce sf = e.touch ? static_pair_force(e) : StaticForce{};
       if (mode_[e.i] == kAsleep && mode_[e.j] == kAsleep) {
-        if (!ni) add_share(fz_mix_, fz_tmix_, e.i, e, sf, -1.0);
-        if (!nj) add_share(fz_mix_, fz_tmix_, e.j, e, sf, -1.0);
+        if (!ni) add_share(fz_mix_, fz_tmix_, static_cast<int>(e.i), e, sf, -1.0);
+        if (!nj) add_share(fz_mix_, fz_tmix_, static_cast<int>(e.j), e, sf, -1.0);
         if (e.touch) pe_sleep_.push_back(e);
-        continue;
+        return false;
       }
-      const int k = ni ? e.i : e.j;  // the new sleeper; the other end is awake
+      const int k = static_cast<int>(ni ? e.i : e.j);  // the new sleeper; the other end is awake
       add_share(fz_mix_, fz_tmix_, k, e, sf, 1.0);
       watch(k);
-      pe_[kp++] = e;
-    }
-    pe_.resize(kp);
+      return true;
+    });
     std::size_t kw = 0;
     for (const auto& e : we_) {
       if (!fz_cand_[e.i]) {
@@ -1275,7 +1180,7 @@ class HybridEngine final : public edm::EdmCore<D, CalendarQueue, HybridEngine<D>
   // The wake test of the watched sleepers after the forces of substep t (f_, tq_ hold the forces
   // of their awake neighbours). A sleeper whose net contact force has moved from its value at
   // sleep by more than its threshold wakes, at rest, with that force and torque; its frozen
-  // contacts join pe_ (the sleepers among their other ends are watched from now on) and its
+  // contacts join pairs_ (the sleepers among their other ends are watched from now on) and its
   // sleeping neighbours within the list skin get entries.
   void wake_loaded(double t) {
     woken_.clear();
@@ -1291,7 +1196,7 @@ class HybridEngine final : public edm::EdmCore<D, CalendarQueue, HybridEngine<D>
         mode_[j] = kSoft;
         slot_[j] = static_cast<int>(soft_.size());
         soft_.push_back(j);
-        disp_[j].setZero();
+        x0_[j] = hot_[j].x;
         hot_[j].t = t;
         last_contact_[j] = t;
         --asleep_;
@@ -1309,7 +1214,7 @@ class HybridEngine final : public edm::EdmCore<D, CalendarQueue, HybridEngine<D>
     }
     if (woken_.empty()) return;
     start_clock(t);
-    // Frozen contacts with a woken end join pe_; a sleeper at the other end gets them in its mixed
+    // Frozen contacts with a woken end join pairs_; a sleeper at the other end gets them in its mixed
     // part.
     moved_.clear();
     std::size_t ks = 0;
@@ -1320,12 +1225,12 @@ class HybridEngine final : public edm::EdmCore<D, CalendarQueue, HybridEngine<D>
         continue;
       }
       if (ai || aj) {
-        const int k = ai ? e.i : e.j;
+        const int k = static_cast<int>(ai ? e.i : e.j);
         add_share(fz_mix_, fz_tmix_, k, e, static_pair_force(e), 1.0);
         watch(k);
       }
-      pe_.push_back(e);
-      moved_.push_back(key(e.i, e.j));
+      pairs_.push(e);
+      moved_.push_back(pkey(e.i, e.j));
     }
     pe_sleep_.resize(ks);
     std::size_t kw = 0;
@@ -1335,7 +1240,7 @@ class HybridEngine final : public edm::EdmCore<D, CalendarQueue, HybridEngine<D>
         we_sleep_[kw++] = e;
       } else {
         we_.push_back(e);
-        moved_w_.push_back(key(e.i, e.w));
+        moved_w_.push_back(key(ui(e.i), ui(e.w)));
       }
     }
     we_sleep_.resize(kw);
@@ -1349,13 +1254,12 @@ class HybridEngine final : public edm::EdmCore<D, CalendarQueue, HybridEngine<D>
         if (mode_[k] != kAsleep) return;
         const double cut = Rj + hot_[k].R + lskin_;
         if ((xj - hot_[k].x - shift).squaredNorm() >= cut * cut) return;
-        const int a = std::min(j, k), b = std::max(j, k);
-        if (std::binary_search(moved_.begin(), moved_.end(), key(a, b))) return;
-        pe_.push_back({a, b, pair_contact_of(a, b), 0, Vec<D>::Zero()});
+        if (std::binary_search(moved_.begin(), moved_.end(), pkey(ui(j), ui(k)))) return;
+        pairs_.push({ui(j), ui(k), pair_contact_of(j, k), image_of(shift), 0, Vec<D>::Zero()});
         watch(k);
       });
       for (std::size_t w = 0; w < sys_.walls.size(); ++w)
-        if (!std::binary_search(moved_w_.begin(), moved_w_.end(), key(j, static_cast<int>(w))) &&
+        if (!std::binary_search(moved_w_.begin(), moved_w_.end(), key(ui(j), ui(static_cast<int>(w)))) &&
             wall_in_reach(j, static_cast<int>(w), t))
           we_.push_back({j, static_cast<int>(w), wall_contact_of(static_cast<int>(w), j), 0, Vec<D>::Zero()});
     }
@@ -1380,7 +1284,7 @@ class HybridEngine final : public edm::EdmCore<D, CalendarQueue, HybridEngine<D>
     record_plan(t, plan_);
     t.skin = skin_;
     t.rebuilds = hstats_.rebuilds;
-    for (const auto& e : pe_) t.contacts += e.touch;
+    for (const auto f : pairs_.touch) t.contacts += f;
     for (const auto& e : we_) t.contacts += e.touch;
     t.contacts += pe_sleep_.size() + we_sleep_.size();
     t.threads = 1;
@@ -1401,7 +1305,7 @@ class HybridEngine final : public edm::EdmCore<D, CalendarQueue, HybridEngine<D>
   std::uint64_t asleep_ = 0;
   std::uint64_t hstats_soft_begun_ = 0;
   HybridStats hstats_;
-  std::vector<Vec<D>> vh_, acc_, f_, disp_;
+  std::vector<Vec<D>> vh_, acc_, f_, x0_;  // x0_: position at the last list build (or join)
   std::vector<Spin<D>> wh_, alpha_, tq_;
   std::vector<double> minv_, iinv_, last_contact_, ema_;
   std::vector<int> quiet_checks_;
@@ -1420,14 +1324,17 @@ class HybridEngine final : public edm::EdmCore<D, CalendarQueue, HybridEngine<D>
   bool uniform_ = false;              // one material and one radius: ctab_ = {pair, wall 0, wall 1, ...}
   std::vector<SoftContact> ctab_;
   std::map<ContactKey, std::uint32_t> ckeys_;
-  Springs springs_, wsprings_;
-  std::vector<PairEntry> pe_, pe_sleep_;  // entries of awake soft pairs; touching ones of sleepers
+  soft::SpringMemory<D> springs_;  // contacts remembered across a list build
+  soft::PairList<D> pairs_;         // entries with an awake soft end (the soft path's loop)
+  std::vector<PairEntry> pe_sleep_;  // touching pairs of two sleepers (frozen)
+  std::array<Vec<D>, D == 3 ? 27 : 9> shifts_{};  // periodic image shifts by index (image_of)
+  double wall_t_ = 0.0;             // the time of the soft forces being computed
   std::vector<WallEntry> we_, we_sleep_;
   bool sleeping_ = false;                 // rest rule on
   double rest_speed2_ = 0.0;
   std::uint64_t sleep_every_ = 1, since_sleep_check_ = 0;
   // Sleepers (rest rule): static net contact force at sleep and wake threshold; for the watched
-  // ones (an awake neighbour in pe_), the constant force and torque of their sleeping contacts.
+  // ones (an awake neighbour in pairs_), the constant force and torque of their sleeping contacts.
   std::vector<Vec<D>> fz_base_, fz_mix_;
   std::vector<Spin<D>> fz_tbase_, fz_tmix_;
   std::vector<int> woken_;
@@ -1444,7 +1351,6 @@ class HybridEngine final : public edm::EdmCore<D, CalendarQueue, HybridEngine<D>
   std::vector<double> fz_scale_;
   std::vector<int> watched_;
   std::vector<std::uint8_t> fz_cand_, fz_lost_, watch_flag_;
-  double wall_t_ = 0.0;  // the time of the soft forces being computed
 
 };
 

@@ -435,7 +435,9 @@ TEST(HybridRest, SleepingBedMatchesTdmAndStopsTheSubsteps) {
   const System<3> s = settling_box<3>(n, 6.0, 11, 0.5);
   const double W = 0.06;
   EdmSettings es;
-  es.end_time = 0.8;
+  // The last grains fall asleep between 0.75 and 0.95 s, depending on the seed and on round-off
+  // (measured with seeds 11-14: at 0.8 s up to 5 of 500 were still settling): 1.2 s leaves margin.
+  es.end_time = 1.2;
   const RunResult<3> rs = run_hybrid<3>(s, es, resting(0.01, 0.02));
   ASSERT_EQ(rs.status, "ok") << rs.message;
   const RunResult<3> ra = run_hybrid<3>(s, es, HybridSettings{});

@@ -1,0 +1,252 @@
+// The soft-contact force loop, the one used by TDM and by the hybrid's soft set: pair contacts from
+// a half neighbour list in rows (a row = one particle's entries), then the caller's wall contacts
+// through wall_contact() below. Templated on the normal law (contact/soft.hpp) and on rotation; a
+// Policy says what differs between the engines:
+//   TDM: rows are all particles of a thread's range in storage order, forces on a particle of
+//        another range are spilled, each particle is integrated as soon as its force is complete
+//        (row_done), overlaps are tracked for the stability check;
+//   hybrid: rows are its soft particles (and rows appended when particles join or wake), it flags
+//        touching and nearby particles for the release rule, and a sleeping end of a contact (rest
+//        rule) feels the springs only.
+// Kinematics (contact/soft.hpp conventions): the dashpots and the sliding direction see the
+// predicted velocities v(t - h/2) + h/2 a(t - h) (engine/soft/verlet.hpp), the tangential spring
+// grows by h times the half-step contact velocity, and a contact that begins inside the step is
+// weighted by onset_fraction/at_onset. A contact present before the first force evaluation of a
+// run began before it: that evaluation applies no onset weight (the policy's onset() is false).
+#pragma once
+
+#include <cmath>
+#include <cstdint>
+
+#include "contact/soft.hpp"
+#include "contact/wall.hpp"
+
+namespace matep::soft {
+
+// The arrays the loop reads and writes, indexed by the caller's particle index (raw pointers: the
+// force writes would otherwise make the compiler reload every vector's data pointer at each use).
+template <int D>
+struct Bodies {
+  const Vec<D>* v = nullptr;       // half-step velocities v(t - h/2)
+  const Vec<D>* acc = nullptr;     // accelerations a(t - h)
+  Vec<D>* f = nullptr;             // forces being accumulated
+  const Spin<D>* w = nullptr;      // half-step spins (rotation only)
+  const Spin<D>* alpha = nullptr;  // angular accelerations (rotation only)
+  Spin<D>* tq = nullptr;           // torques being accumulated (rotation only)
+};
+
+// Positions and radii, as separate arrays (TDM) or inside each particle's record (the hybrid: the
+// EDM core's hot state). The loop copies the accessor, so its pointers stay in registers.
+template <int D>
+struct Arrays {
+  const Vec<D>* x;
+  const double* R;
+  const Vec<D>& pos(std::uint32_t i) const { return x[i]; }
+  double radius(std::uint32_t i) const { return R[i]; }
+};
+template <int D, class Rec>
+struct Records {
+  const Rec* p;  // p[i].x, p[i].R
+  const Vec<D>& pos(std::uint32_t i) const { return p[i].x; }
+  double radius(std::uint32_t i) const { return p[i].R; }
+};
+
+// A half neighbour list in rows: row r holds entries off[r] .. off[r + 1] of the particle
+// owner[r] (owner null: row r is particle r); an entry is the partner j, the index of the
+// periodic image shift to add to x_i - x_j, the touching flag and (with rotation) the spring.
+template <int D>
+struct PairRows {
+  const std::uint32_t* owner = nullptr;
+  const std::uint32_t* off = nullptr;
+  const std::uint32_t* nb = nullptr;
+  const std::uint8_t* sh = nullptr;
+  std::uint8_t* touch = nullptr;
+  Vec<D>* xi = nullptr;
+  const Vec<D>* shift = nullptr;  // image shifts by index
+};
+
+// Pair forces of rows [r0, r1). The policy provides (see the engines for the two):
+//   static constexpr bool kSleepers, kNear, kVirial;
+//   bool onset() const;                       // may a contact begun now get its onset weight?
+//   const SoftContact& contact(e, i, j, SoftContact& scratch);
+//   void began();  void opened(i, j);  void overlap(delta, Rs);
+//   void touching(i, j);  void near(i, j);  double near_skin() const;
+//   bool any_asleep() const;  bool asleep(i) const;  double rest_speed2() const;  void wake(k);
+//   void partner(j, Fj, tj);  void virial(F, dx);  void row_done(i);
+template <int D, NormalLaw Law, bool Rot, class Pos, class Policy>
+[[gnu::always_inline]] inline void pair_rows(const Pos P, const Bodies<D>& b, const PairRows<D>& L, std::uint32_t r0,
+                                             std::uint32_t r1, double h, Policy& pol) {
+  const double hdt = 0.5 * h;
+  const Vec<D>* const V = b.v;
+  const Vec<D>* const AC = b.acc;
+  Vec<D>* const FF = b.f;
+  const std::uint32_t* const NB = L.nb;
+  const std::uint32_t* const OFF = L.off;
+  const std::uint8_t* const SH = L.sh;
+  std::uint8_t* const TOUCH = L.touch;
+  const Vec<D>* const SHIFT = L.shift;
+  const bool onset_ok = pol.onset();
+  for (std::uint32_t r = r0; r < r1; ++r) {
+    const std::uint32_t i = L.owner ? L.owner[r] : r;
+    const Vec<D> xi = P.pos(i);
+    const double Ri = P.radius(i);
+    // i's half-step and predicted velocities are read where a contact needs them (most entries
+    // of a dilute gas are not in contact).
+    Vec<D> fi = Vec<D>::Zero();
+    Spin<D> ti = Spin<D>::Zero();
+    const std::uint32_t end = OFF[r + 1];
+    for (std::uint32_t e = OFF[r]; e < end; ++e) {
+      const std::uint32_t j = NB[e];
+      const Vec<D> dx = xi - P.pos(j) + SHIFT[SH[e]];
+      const double Rs = Ri + P.radius(j);
+      const double r2 = dx.squaredNorm();
+      if constexpr (Policy::kNear) {
+        const double cut = Rs + pol.near_skin();
+        if (r2 < cut * cut) pol.near(i, j);
+      }
+      if (r2 >= Rs * Rs) {
+        if (TOUCH[e]) {
+          TOUCH[e] = 0;
+          if constexpr (Rot) L.xi[e].setZero();
+          pol.opened(i, j);
+        }
+        continue;
+      }
+      const double rr = std::sqrt(r2);
+      const Vec<D> n = dx * (1.0 / rr);
+      const double delta = Rs - rr;
+      const Vec<D> vhi = V[i], vpi = V[i] + hdt * AC[i];
+      double onset = -1.0;  // first step of this contact: the part of the step spent in contact
+      if (!TOUCH[e]) {
+        TOUCH[e] = 1;
+        pol.began();
+        if (onset_ok) onset = onset_fraction(delta, -(vhi - V[j]).dot(n), h);
+      }
+      pol.overlap(delta, Rs);
+      pol.touching(i, j);
+      SoftContact scratch;
+      const SoftContact* cp = &pol.contact(e, i, j, scratch);
+      SoftContact local;
+      if (onset >= 0.0) {
+        local = *cp;
+        at_onset<Law>(local, onset);
+        cp = &local;
+      }
+      const SoftContact& c = *cp;
+      // Predicted velocities at the new time: v(t + h/2) + h/2 a(t).
+      const Vec<D> vj = V[j] + hdt * AC[j];
+      // A sleeping end (rest rule) is pushed by the springs only; a touching grain that
+      // approaches it faster than rest_speed wakes it.
+      bool sleep_i = false, sleep_j = false;
+      if constexpr (Policy::kSleepers) {
+        if (pol.any_asleep()) {
+          sleep_i = pol.asleep(i);
+          sleep_j = pol.asleep(j);
+          if (sleep_i || sleep_j) {
+            const double un = (vhi - V[j]).dot(n);  // < 0: approaching (n points from j to i)
+            if (un < 0.0 && un * un > pol.rest_speed2()) pol.wake(sleep_i ? i : j);
+          }
+        }
+      }
+      Vec<D> F, Fel;
+      Spin<D> tj = Spin<D>::Zero();
+      if constexpr (!Rot) {
+        double fn = normal_force_law<Law>(c, delta, (vpi - vj).dot(n));
+        if (c.clip && fn < 0.0) fn = 0.0;
+        F = fn * n;
+        if (sleep_i || sleep_j) Fel = elastic_normal_force<Law>(c, delta) * n;
+      } else {
+        const double li = pair_lever_arm(Ri, delta), lj = pair_lever_arm(P.radius(j), delta);
+        ContactKinematics<D> k;
+        k.delta = delta;
+        k.n = n;
+        const Spin<D> whi = b.w[i], wpi = b.w[i] + hdt * b.alpha[i];
+        k.v = contact_velocity<D>(vpi, wpi, li, vj, b.w[j] + hdt * b.alpha[j], lj, n);
+        k.dxi = h * contact_velocity<D>(vhi, whi, li, V[j], b.w[j], lj, n);
+        if (onset >= 0.0) k.dxi *= onset;  // the spring stretches only since first touch
+        ContactHistory<D> hist{L.xi[e]};
+        const ContactForce<D> cf = soft_contact_force_law<D, Law>(c, k, hist);
+        L.xi[e] = hist.xi;
+        F = cf.force;
+        // tau = -l n x F_t on both bodies (contact/soft.hpp conventions).
+        const Spin<D> m = lever_moment<D>(n, cf.tangential);
+        if (sleep_i || sleep_j) {
+          const double kt = Law == NormalLaw::Linear ? c.kt : c.kt * std::sqrt(delta);
+          const Vec<D> ft = -kt * L.xi[e];
+          Fel = elastic_normal_force<Law>(c, delta) * n + ft;
+          const Spin<D> mel = lever_moment<D>(n, ft);
+          ti -= li * (sleep_i ? mel : m);
+          tj = -lj * (sleep_j ? mel : m);
+        } else {
+          ti -= li * m;
+          tj = -lj * m;
+        }
+      }
+      if constexpr (Policy::kSleepers) {
+        fi += sleep_i ? Fel : F;
+        pol.partner(j, sleep_j ? Vec<D>(-Fel) : Vec<D>(-F), tj);
+      } else {
+        fi += F;
+        pol.partner(j, -F, tj);
+      }
+      if constexpr (Policy::kVirial) pol.virial(F, dx);
+    }
+    FF[i] += fi;
+    if constexpr (Rot) b.tq[i] += ti;
+    pol.row_done(i);
+  }
+}
+
+// One wall contact of particle i at time t (the walls' state: contact/wall.hpp): adds its force and
+// torque to f and tq, keeps the touching flag and the spring, and returns the overlap (<= 0: no
+// contact). `began` is set when the contact begins at this evaluation; `onset_ok` as in pair_rows.
+template <int D, NormalLaw Law, bool Rot>
+[[gnu::always_inline]] inline double wall_contact(const WallShape<D>& W, double t, double h, bool onset_ok,
+                                                  const Vec<D>& x, double R, const Vec<D>& vh, const Vec<D>& acc,
+                                                  const Spin<D>& wh, const Spin<D>& alpha, SoftContact c,
+                                                  std::uint8_t& touch, Vec<D>& xi, bool& began, Vec<D>& f,
+                                                  Spin<D>& tq) {
+  const double hdt = 0.5 * h;
+  const WallPoint<D> wp = W.at(x, R, t);
+  const Vec<D>& n = wp.normal;
+  const Vec<D>& u = wp.velocity;
+  const double delta = -wp.gap;
+  began = false;
+  if (delta <= 0.0) {
+    if (touch) {
+      touch = 0;
+      if constexpr (Rot) xi.setZero();
+    }
+    return delta;
+  }
+  double onset = -1.0;
+  if (!touch) {
+    touch = 1;
+    began = true;
+    // The surface's velocity at the half step (the half-step velocities' frame).
+    if (onset_ok) onset = onset_fraction(delta, -(vh - W.surface_velocity(x, R, t - hdt)).dot(n), h);
+  }
+  if (onset >= 0.0) at_onset<Law>(c, onset);
+  const Vec<D> vi = vh + hdt * acc - u;  // relative to the wall
+  if constexpr (!Rot) {
+    double fn = normal_force_law<Law>(c, delta, vi.dot(n));
+    if (c.clip && fn < 0.0) fn = 0.0;
+    f += fn * n;
+  } else {
+    const double li = wall_lever_arm(R, delta);
+    ContactKinematics<D> k;
+    k.delta = delta;
+    k.n = n;
+    k.v = vi - spin_cross<D>(li * Spin<D>(wh + hdt * alpha), n);
+    k.dxi = h * (vh - W.surface_velocity(x, R, t - hdt) - spin_cross<D>(li * wh, n));
+    if (onset >= 0.0) k.dxi *= onset;
+    ContactHistory<D> hist{xi};
+    const ContactForce<D> cf = soft_contact_force_law<D, Law>(c, k, hist);
+    xi = hist.xi;
+    f += cf.force;
+    tq += contact_torque<D>(n, cf.tangential, li);
+  }
+  return delta;
+}
+
+}  // namespace matep::soft

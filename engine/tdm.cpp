@@ -10,6 +10,7 @@
 #include <stdexcept>
 
 #include "contact/soft.hpp"
+#include "engine/grid.hpp"
 #include "engine/soft/forces.hpp"
 #include "engine/soft/springs.hpp"
 #include "engine/soft/verlet.hpp"
@@ -43,8 +44,6 @@ class TdmEngine {
   void setup();
   // ---- neighbour lists ----
   void rebuild();
-  std::uint8_t image_index(Vec<D>& dx) const;
-  void build_stencil();
   // ---- forces ----
   struct alignas(64) Acc {
     std::uint64_t new_pair = 0, new_wall = 0;
@@ -110,16 +109,13 @@ class TdmEngine {
   double wall_t_ = 0.0;                      // the time of the forces being computed
 
   // Cell grid used by rebuild().
-  std::array<int, D> nc_{};
-  Vec<D> cell_len_ = Vec<D>::Ones();
+  CellGrid<D> grid_;
   std::vector<std::uint32_t> cell_of_, cell_start_, order_;
   // Half stencil of each cell: neighbour cells of larger index (CSR) and the periodic image shift
-  // to add to x_i (kMinImage: decide per pair, for axes of fewer than three cells).
-  static constexpr std::uint8_t kMinImage = 255;
+  // to add to x_i.
   std::vector<std::uint32_t> st_off_, st_cell_;
   std::vector<std::uint8_t> st_shift_;
   std::uint8_t centre_shift_ = 0;
-  bool ambiguous_ = false;  // some periodic axis has fewer than three cells
   bool initial_ = true;     // the force evaluation at t = 0 (contacts present then began before)
   std::vector<Vec<D>> scratch_vec_;
   std::vector<Spin<D>> scratch_spin_;
@@ -161,15 +157,7 @@ SoftPlan preflight(const System<D>& sys, const TdmSettings& set) {
         "run.dt: {} is above the stability limit {:.6g} of velocity Verlet for the stiffest contact "
         "({}, at impact speed {:.4g}); use run.dt <= {:.6g} (the default is {:.6g})",
         set.dt, plan.max_stable_dt, plan.limiting, plan.impact_speed, plan.max_stable_dt, plan.default_dt));
-  const double dmax = largest_diameter(sys.radius), skin = skin_of(sys, set);
-  for (int k = 0; k < D; ++k) {
-    const double L = sys.upper[k] - sys.lower[k];
-    if (sys.periodic[k] && L < 2.0 * (dmax + skin))
-      throw std::invalid_argument(fmt::format(
-          "domain.upper: periodic axis {} is {} long, shorter than twice the largest diameter plus the "
-          "skin ({})",
-          "xyz"[k], L, 2.0 * (dmax + skin)));
-  }
+  check_periodic_axes<D>(sys.lower, sys.upper, sys.periodic, largest_diameter(sys.radius), skin_of(sys, set));
   return plan;
 }
 
@@ -221,23 +209,17 @@ void TdmEngine<D>::setup() {
       cwall_.push_back(wall_contact(plan_, w, mat_[0], R_[0], m_[0]));
   }
 
-  // Periodic image shifts: index sum_k (s_k + 1) 3^k for s_k in {-1, 0, 1}.
-  for (std::size_t s = 0; s < shifts_.size(); ++s) {
-    std::size_t r = s;
-    for (int k = 0; k < D; ++k) {
-      shifts_[s][k] = (static_cast<double>(r % 3) - 1.0) * L_[k];
-      r /= 3;
-    }
+  // Cell grid (engine/grid.hpp): cells at least one largest diameter plus the skin wide (at least
+  // three on a periodic axis: the preflight's rule), with the half stencil of each cell and the
+  // periodic image shifts by index.
+  grid_.build(sys_.lower, sys_.upper, sys_.periodic, dmax + skin_, std::numeric_limits<double>::infinity());
+  grid_.half_stencil(st_off_, st_cell_, st_shift_);
+  shifts_ = grid_.shift_table();
+  {
+    int cs = 0;
+    for (int k = 0, p = 1; k < D; ++k, p *= 3) cs += p;  // index of the zero shift
+    centre_shift_ = static_cast<std::uint8_t>(cs);
   }
-
-  // Cell grid: cells at least one largest diameter plus the skin wide.
-  const double cs = dmax + skin_;
-  for (int k = 0; k < D; ++k) {
-    nc_[k] = std::max(1, static_cast<int>(std::floor(L_[k] / cs)));
-    nc_[k] = std::min(nc_[k], 1 << 20);
-    cell_len_[k] = L_[k] / nc_[k];
-  }
-  build_stencil();
 
   // Threads: contiguous particle ranges of at least kMinPerThread particles (below that, the
   // fork-join of a parallel region each step costs more than it saves).
@@ -256,83 +238,6 @@ void TdmEngine<D>::setup() {
   acc_t_.resize(T_);
 }
 
-// Minimum image: shifts dx = x_i - x_j onto the nearest periodic image and returns the index of
-// the shift added.
-template <int D>
-std::uint8_t TdmEngine<D>::image_index(Vec<D>& dx) const {
-  int s = 0, p = 1;
-  for (int k = 0; k < D; ++k, p *= 3) {
-    int sk = 0;
-    if (sys_.periodic[k]) {
-      if (dx[k] > 0.5 * L_[k]) sk = -1;
-      else if (dx[k] < -0.5 * L_[k]) sk = 1;
-      dx[k] += sk * L_[k];
-    }
-    s += (sk + 1) * p;
-  }
-  return static_cast<std::uint8_t>(s);
-}
-
-// For every cell, the neighbour cells of larger index (each once) with the image shift that
-// brings x_i next to them: a neighbour reached by wrapping around the upper face of a periodic
-// axis lies at its image x_j + L, i.e. dx = x_i - x_j - L.
-template <int D>
-void TdmEngine<D>::build_stencil() {
-  std::size_t ncell = 1;
-  for (int k = 0; k < D; ++k) ncell *= static_cast<std::size_t>(nc_[k]);
-  bool ambiguous = false;
-  for (int k = 0; k < D; ++k) ambiguous = ambiguous || (sys_.periodic[k] && nc_[k] < 3);
-  ambiguous_ = ambiguous;
-  {
-    int cs = 0;
-    for (int k = 0, p = 1; k < D; ++k, p *= 3) cs += p;  // index of the zero shift
-    centre_shift_ = static_cast<std::uint8_t>(cs);
-  }
-  st_off_.assign(ncell + 1, 0);
-  st_cell_.clear();
-  st_shift_.clear();
-  std::vector<std::pair<std::uint32_t, std::uint8_t>> found;
-  std::array<int, D> cc{};
-  for (std::size_t c = 0; c < ncell; ++c) {
-    std::size_t r = c;
-    for (int k = 0; k < D; ++k) {
-      cc[k] = static_cast<int>(r % nc_[k]);
-      r /= nc_[k];
-    }
-    found.clear();
-    const int nstencil = D == 3 ? 27 : 9;
-    for (int s = 0; s < nstencil; ++s) {
-      int rr = s, shift = 0;
-      std::size_t idx = 0, p = 1;
-      bool ok = true;
-      for (int k = 0, p3 = 1; k < D; ++k, p3 *= 3) {
-        int ck = cc[k] + (rr % 3) - 1;
-        rr /= 3;
-        int sk = 0;
-        if (ck < 0 || ck >= nc_[k]) {
-          if (!sys_.periodic[k]) { ok = false; break; }
-          sk = ck < 0 ? 1 : -1;  // wrapped below: the image is x_j - L, so dx gains +L
-          ck = (ck + nc_[k]) % nc_[k];
-        }
-        shift += (sk + 1) * p3;
-        idx += static_cast<std::size_t>(ck) * p;
-        p *= static_cast<std::size_t>(nc_[k]);
-      }
-      if (ok && idx > c)
-        found.push_back({static_cast<std::uint32_t>(idx), ambiguous ? kMinImage : static_cast<std::uint8_t>(shift)});
-    }
-    std::sort(found.begin(), found.end());
-    found.erase(std::unique(found.begin(), found.end(),
-                            [](const auto& a, const auto& b) { return a.first == b.first; }),
-                found.end());
-    for (const auto& [c2, sh] : found) {
-      st_cell_.push_back(c2);
-      st_shift_.push_back(sh);
-    }
-    st_off_[c + 1] = static_cast<std::uint32_t>(st_cell_.size());
-  }
-}
-
 template <int D>
 void TdmEngine<D>::rebuild() {
   ++rebuilds_;
@@ -347,8 +252,7 @@ void TdmEngine<D>::rebuild() {
   mem.sort();
 
   // 2. Wrap periodic axes, check the state, bin into cells.
-  std::size_t ncell = 1;
-  for (int k = 0; k < D; ++k) ncell *= static_cast<std::size_t>(nc_[k]);
+  const std::size_t ncell = static_cast<std::size_t>(grid_.cells());
   cell_of_.resize(N_);
   cell_start_.assign(ncell + 1, 0);
   for (std::size_t i = 0; i < N_; ++i) {
@@ -363,18 +267,14 @@ void TdmEngine<D>::rebuild() {
     std::size_t c = 0, p = 1;
     for (int k = 0; k < D; ++k) {
       if (sys_.periodic[k]) {
-        x[k] = sys_.lower[k] + (x[k] - sys_.lower[k]) - L_[k] * std::floor((x[k] - sys_.lower[k]) / L_[k]);
-        if (x[k] >= sys_.upper[k]) x[k] = sys_.lower[k];
+        x[k] = wrap_periodic(x[k], sys_.lower[k], sys_.upper[k]);
       } else if (x[k] < sys_.lower[k] || x[k] > sys_.upper[k]) {
         status_ = "escaped";
-        message_ = fmt::format("particle {} left the domain along {} at {} (no wall there; the axis is not periodic)",
-                               id_[i], "xyz"[k], x[k]);
+        message_ = escape_message(id_[i], k, static_cast<double>(steps_) * dt_, x[k]);
         return;
       }
-      int ck = static_cast<int>((x[k] - sys_.lower[k]) / cell_len_[k]);
-      ck = std::clamp(ck, 0, nc_[k] - 1);
-      c += static_cast<std::size_t>(ck) * p;
-      p *= static_cast<std::size_t>(nc_[k]);
+      c += static_cast<std::size_t>(grid_.coord(k, x[k])) * p;
+      p *= static_cast<std::size_t>(grid_.count(k));
     }
     cell_of_[i] = static_cast<std::uint32_t>(c);
     ++cell_start_[c + 1];
@@ -413,31 +313,21 @@ void TdmEngine<D>::rebuild() {
       const double Ri = R_[i] + skin_;
       for (std::uint32_t j = i + 1; j < ce; ++j) {
         const double cut = Ri + R_[j];
-        Vec<D> dx = xi - x_[j];
-        const std::uint8_t si = ambiguous_ ? image_index(dx) : centre_shift_;
+        const Vec<D> dx = xi - x_[j];
         if (dx.squaredNorm() < cut * cut) {
           nb_.push_back(j);
-          sh_.push_back(si);
+          sh_.push_back(centre_shift_);
         }
       }
       for (std::uint32_t k = st_off_[c]; k < st_off_[c + 1]; ++k) {
         const std::uint32_t c2 = st_cell_[k];
         const std::uint8_t s = st_shift_[k];
-        const Vec<D> xs = s != kMinImage ? Vec<D>(xi + shifts_[s]) : xi;
+        const Vec<D> xs = xi + shifts_[s];
         for (std::uint32_t j = cell_start_[c2]; j < cell_start_[c2 + 1]; ++j) {
           const double cut = Ri + R_[j];
-          if (s != kMinImage) {
-            if ((xs - x_[j]).squaredNorm() < cut * cut) {
-              nb_.push_back(j);
-              sh_.push_back(s);
-            }
-          } else {  // an axis of fewer than three cells: the image is not fixed by the cell
-            Vec<D> dx = xi - x_[j];
-            const std::uint8_t si = image_index(dx);
-            if (dx.squaredNorm() < cut * cut) {
-              nb_.push_back(j);
-              sh_.push_back(si);
-            }
+          if ((xs - x_[j]).squaredNorm() < cut * cut) {
+            nb_.push_back(j);
+            sh_.push_back(s);
           }
         }
       }

@@ -9,6 +9,7 @@
 #include <optional>
 #include <stdexcept>
 
+#include "engine/grid.hpp"
 #include "engine/hybrid.hpp"
 #include "engine/rough_rules.hpp"
 #include "engine/tdm.hpp"
@@ -101,19 +102,17 @@ class ProgressObserver final : public Observer<2>, public Observer<3> {
   double end_;
 };
 
-// Checks what the scene reader cannot know about the engine: the cell grid needs three cells
-// of at least one largest diameter along a periodic axis (otherwise a particle would meet two
-// images of the same neighbour). Called by run before anything is written, and by check.
+// Checks what the scene reader cannot know about the engine: the periodic-axis rule of the cell
+// grid (engine/grid.hpp), here with no list skin; the soft preflights check it again with theirs.
+// Called by run before anything is written, and by check.
 template <int D>
 void check_runnable(const Scene& scene, const System<D>& sys) {
   double dmax = 0.0;
   for (double r : sys.radius) dmax = std::max(dmax, 2.0 * r);
-  for (int k = 0; k < D; ++k) {
-    const double L = sys.upper[k] - sys.lower[k];
-    if (sys.periodic[k] && L < 3.0 * dmax)
-      throw SceneError(fmt::format("{}: domain.upper: periodic axis {} is {} long, shorter than three "
-                                   "largest particle diameters ({}); enlarge the domain (got [{}])",
-                                   scene.path, "xyz"[k], L, 3.0 * dmax, fmt::join(sys.upper, ", ")));
+  try {
+    check_periodic_axes<D>(sys.lower, sys.upper, sys.periodic, dmax, 0.0);
+  } catch (const std::invalid_argument& e) {
+    throw SceneError(fmt::format("{}: {}", scene.path, e.what()));
   }
 }
 

@@ -33,6 +33,7 @@
 #include "contact/soft.hpp"
 #include "contact/wall.hpp"
 #include "engine/edm.hpp"
+#include "engine/grid.hpp"
 #include "engine/huge_pages.hpp"
 #include "engine/rough_rules.hpp"
 
@@ -139,7 +140,8 @@ class EdmCore {
       bracketed_walls_ = bracketed_walls_ || wall.geometry().bracketed();
     }
     setup_rough(rough);
-    build_cells(2.0 * rmax + derived().ext_cell_margin());
+    const double margin = derived().ext_cell_margin();
+    build_cells(2.0 * rmax, margin);
     derived().ext_cells_ready(rmax);
   }
 
@@ -259,65 +261,19 @@ class EdmCore {
   enum : std::uint8_t { kNone = 0, kPair = 1, kWall = 2 };
 
   // ---- cells ---------------------------------------------------------------------------------
-  void build_cells(double dmax) {
-    ncells_total_ = 1;
-    for (int k = 0; k < D; ++k) {
-      int n = dmax > 0.0 ? static_cast<int>(std::floor(L_[k] / dmax)) : 1;
-      // Cap the grid at about two cells per particle per axis product (memory), at least 1.
-      n = std::max(1, std::min(n, 1 << 20));
-      if (sys_.periodic[k] && n < 3)
-        throw std::invalid_argument(fmt::format(
-            "domain: periodic axis {} is {:.6g} long, shorter than 3 largest particle diameters "
-            "({:.6g}); enlarge the domain",
-            k, L_[k], 3.0 * dmax));
-      nc_[k] = n;
-      cw_[k] = L_[k] / n;
-    }
-    // Too many cells for the particle count wastes memory: coarsen uniformly.
-    const double max_cells = std::max(64.0, 2.0 * N_);
-    for (;;) {
-      double total = 1.0;
-      for (int k = 0; k < D; ++k) total *= nc_[k];
-      if (total <= max_cells) break;
-      for (int k = 0; k < D; ++k) {
-        const int n = std::max(sys_.periodic[k] ? 3 : 1, static_cast<int>(nc_[k] * 0.8));
-        nc_[k] = n;
-        cw_[k] = L_[k] / n;
-      }
-    }
-    stride_[0] = 1;
-    for (int k = 1; k < D; ++k) stride_[k] = stride_[k - 1] * nc_[k - 1];
-    ncells_total_ = stride_[D - 1] * nc_[D - 1];
-    // Linear offsets of the 3^D neighbour cells, and of the 3^(D-1) cells of each face layer.
-    offsets_all_.clear();
-    for (auto& l : offsets_layer_) l.clear();
-    for (int m = 0; m < ipow3(D); ++m) {
-      int off = 0, rest = m;
-      std::array<int, D> o{};
-      for (int k = 0; k < D; ++k) {
-        o[k] = rest % 3 - 1;
-        rest /= 3;
-        off += o[k] * stride_[k];
-      }
-      offsets_all_.push_back(off);
-      for (int k = 0; k < D; ++k)
-        if (o[k] != 0) offsets_layer_[2 * k + (o[k] > 0)].push_back(off);
-    }
-    head_.assign(ncells_total_, -1);
+  // Cells at least one largest diameter dmax plus an extension's list skin (margin) wide
+  // (engine/grid.hpp), at most about two per particle (memory), filled as linked lists.
+  void build_cells(double dmax, double margin) {
+    check_periodic_axes<D>(lo_, hi_, sys_.periodic, dmax, margin);
+    grid_.build(lo_, hi_, sys_.periodic, dmax + margin, std::max(64.0, 2.0 * N_));
+    head_.assign(grid_.cells(), -1);
     next_.assign(N_, -1);
     for (int i = 0; i < N_; ++i) {
-      for (int k = 0; k < D; ++k) {
-        int c = static_cast<int>(std::floor((hot_[i].x[k] - lo_[k]) / cw_[k]));
-        cold_[i].cell[k] = std::clamp(c, 0, nc_[k] - 1);
-      }
+      cold_[i].cell = grid_.coords(hot_[i].x);
       cell_insert(i);
     }
   }
-  int linear(const std::array<int, D>& c) const {
-    int l = 0;
-    for (int k = 0; k < D; ++k) l += c[k] * stride_[k];
-    return l;
-  }
+  int linear(const std::array<int, D>& c) const { return grid_.linear(c); }
   void cell_insert(int i) {
     const int l = linear(cold_[i].cell);
     next_[i] = head_[l];
@@ -338,11 +294,9 @@ class EdmCore {
   void for_neighbours(int i, F&& f, int layer_axis = -1, int layer_dir = 0) const {
     const std::array<int, D> c = cold_[i].cell;
     // Fast path: a cell away from the grid's faces has its neighbours at fixed linear offsets.
-    bool interior = true;
-    for (int k = 0; k < D; ++k) interior = interior && c[k] >= 1 && c[k] < nc_[k] - 1;
-    if (interior) {
+    if (grid_.interior(c)) {
       const int lin = linear(c);
-      const auto& offs = layer_axis < 0 ? offsets_all_ : offsets_layer_[2 * layer_axis + (layer_dir > 0)];
+      const auto& offs = grid_.offsets(layer_axis, layer_dir);
       const Vec<D> zero = Vec<D>::Zero();
       // Collect first, prefetching each neighbour's state, then test: the misses of a large
       // system overlap instead of following one another.
@@ -362,50 +316,13 @@ class EdmCore {
       for (int m = 0; m < n; ++m) f(buf[m], zero);
       return;
     }
-    std::array<int, 3> nk[D];
-    std::array<double, 3> sk[D];
-    std::array<int, D> count{};
-    for (int k = 0; k < D; ++k) {
-      const int olo = (k == layer_axis) ? layer_dir : -1;
-      const int ohi = (k == layer_axis) ? layer_dir : 1;
-      for (int o = olo; o <= ohi; ++o) {
-        int cc = c[k] + o;
-        double s = 0.0;
-        if (cc < 0) {
-          if (!sys_.periodic[k]) continue;
-          cc += nc_[k];
-          s = -L_[k];
-        } else if (cc >= nc_[k]) {
-          if (!sys_.periodic[k]) continue;
-          cc -= nc_[k];
-          s = L_[k];
-        }
-        nk[k][count[k]] = cc * stride_[k];
-        sk[k][count[k]] = s;
-        ++count[k];
-      }
-    }
-    auto cell = [&](int lin, const Vec<D>& shift) {
-      for (int j = head_[lin]; j >= 0; j = next_[j])
-        if (j != i) f(j, shift);
-    };
-    visit_stencil(nk, sk, count, cell);
-  }
-
-  // Calls cell(l, shift) for every combination of the per-axis neighbour cells nk[k][0..count[k])
-  // (linear offsets, summed) and image shifts sk[k][...] (for_neighbours, soft_grid_neighbours).
-  template <class Cell>
-  static void visit_stencil(const std::array<int, 3> (&nk)[D], const std::array<double, 3> (&sk)[D],
-                            const std::array<int, D>& count, Cell&& cell) {
-    if constexpr (D == 2) {
-      for (int a = 0; a < count[0]; ++a)
-        for (int b = 0; b < count[1]; ++b) cell(nk[0][a] + nk[1][b], Vec<D>(sk[0][a], sk[1][b]));
-    } else {
-      for (int a = 0; a < count[0]; ++a)
-        for (int b = 0; b < count[1]; ++b)
-          for (int e = 0; e < count[2]; ++e)
-            cell(nk[0][a] + nk[1][b] + nk[2][e], Vec<D>(sk[0][a], sk[1][b], sk[2][e]));
-    }
+    grid_.around(
+        c,
+        [&](int lin, const Vec<D>& shift) {
+          for (int j = head_[lin]; j >= 0; j = next_[j])
+            if (j != i) f(j, shift);
+        },
+        layer_axis, layer_dir);
   }
 
   // ---- motion ---------------------------------------------------------------------------------
@@ -435,8 +352,9 @@ class EdmCore {
     std::uint8_t aux = 0;
     for (int k = 0; k < D; ++k) {
       const int c = cold_[i].cell[k];
-      const double lo = (c == 0) ? lo_[k] : lo_[k] + c * cw_[k];
-      const double hi_face = (c == nc_[k] - 1) ? hi_[k] : lo_[k] + (c + 1) * cw_[k];
+      const double cw = grid_.width(k);
+      const double lo = (c == 0) ? lo_[k] : lo_[k] + c * cw;
+      const double hi_face = (c == grid_.count(k) - 1) ? hi_[k] : lo_[k] + (c + 1) * cw;
       bool up = false;
       double dt;
       if (g_[k] == 0.0) {  // straight flight along this axis: the face ahead, never behind
@@ -582,17 +500,15 @@ class EdmCore {
       const bool up = cold_[i].aux & 1;
       cell_remove(i);
       int c = cold_[i].cell[k] + (up ? 1 : -1);
-      if (c < 0 || c >= nc_[k]) {
+      if (c < 0 || c >= grid_.count(k)) {
         if (!sys_.periodic[k]) {
           cell_insert(i);
           status_ = "escaped";
-          message_ = fmt::format(
-              "particle {} left the domain through the {} face of axis {} at t = {:.17g} "
-              "(position {:.6g}); add a wall there or make the axis periodic",
-              i, up ? "upper" : "lower", k, t, hot_[i].x[k]);
+          message_ = escape_message(static_cast<std::uint64_t>(i), k, t, hot_[i].x[k]);
           return;
         }
-        c = up ? 0 : nc_[k] - 1;
+        // The periodic wrap of a particle on the face it crosses: exactly one period.
+        c = up ? 0 : grid_.count(k) - 1;
         hot_[i].x[k] += up ? -L_[k] : L_[k];
       }
       cold_[i].cell[k] = c;
@@ -910,13 +826,8 @@ class EdmCore {
   };
   Array<Cold> cold_;
 
-  std::array<int, D> nc_{}, stride_{};
-  Vec<D> cw_;
-  int ncells_total_ = 0;
+  CellGrid<D> grid_;  // engine/grid.hpp
   Array<int> head_, next_;
-  std::vector<int> offsets_all_;
-  std::array<std::vector<int>, 2 * D> offsets_layer_;
-  static constexpr int ipow3(int d) { return d == 0 ? 1 : 3 * ipow3(d - 1); }
 
   EventCounts counts_;
   double virial_ = 0.0;

@@ -38,6 +38,28 @@ double hybrid_substep(const SoftPlan& plan, const HybridSettings& hs) {
   return h;
 }
 
+// The hybrid's two skins: the capture skin (a hard particle this near a soft one joins the soft
+// set) and the soft list's skin, which also widens the EDM cells.
+struct Skins {
+  double capture = 0.0, list = 0.0;
+};
+constexpr double kListSkin = 0.1;  // soft neighbour-list skin, fraction of the smallest diameter
+Skins hybrid_skins(const std::vector<double>& radius, const SoftPlan& plan, const HybridSettings& hs, double h) {
+  double dmin = kNever;
+  for (double r : radius) dmin = std::min(dmin, 2.0 * r);
+  Skins s;
+  s.capture = hs.skin * (radius.empty() ? 0.0 : dmin);
+  // The skin must cover the largest relative approach in one substep (two particles at the
+  // largest expected impact speed each): no contact can begin between two capture checks.
+  s.capture = std::max(s.capture, 4.0 * plan.impact_speed * h);
+  // The Verlet list of the soft set takes the TDM engine's skin, 0.1 d (a wider one saved
+  // rebuilds in the pour but widened the EDM cells, whose width is the list's cut-off: 10 %
+  // slower hard predictions in a gas); the capture skin is smaller (default 0.01 d): a capture
+  // skin of 0.1 d spread the soft set through every gas denser than phi ~ 0.2.
+  s.list = std::max(s.capture, kListSkin * dmin);
+  return s;
+}
+
 
 template <int D>
 class HybridEngine final : public edm::EdmCore<D, CalendarQueue, HybridEngine<D>> {
@@ -63,14 +85,9 @@ class HybridEngine final : public edm::EdmCore<D, CalendarQueue, HybridEngine<D>
   using Base::hot_;
   using Base::mass_factor_;
   using Base::cold_;
-  using Base::nc_;
-  using Base::stride_;
-  using Base::cw_;
-  using Base::ncells_total_;
   using Base::head_;
+  using Base::grid_;
   using Base::next_;
-  using Base::offsets_all_;
-  using Base::offsets_layer_;
   using Base::counts_;
   using Base::virial_;
   using Base::prev_ke_;
@@ -82,7 +99,6 @@ class HybridEngine final : public edm::EdmCore<D, CalendarQueue, HybridEngine<D>
   using Base::advance;
   using Base::predict;
   using Base::for_neighbours;
-  using Base::visit_stencil;
   using Base::cell_insert;
   using Base::cell_remove;
   using Base::linear;
@@ -169,17 +185,9 @@ class HybridEngine final : public edm::EdmCore<D, CalendarQueue, HybridEngine<D>
     h_ = hybrid_substep(plan_, hs);
     hdt_ = 0.5 * h_;
     rot_ = plan_.friction;
-    double dmin = kNever;
-    for (double r : sys_.radius) dmin = std::min(dmin, 2.0 * r);
-    skin_ = hs.skin * (sys_.radius.empty() ? 0.0 : dmin);
-    // The skin must cover the largest relative approach in one substep (two particles at the
-    // largest expected impact speed each): no contact can begin between two capture checks.
-    skin_ = std::max(skin_, 4.0 * plan_.impact_speed * h_);
-    // The Verlet list of the soft set takes the TDM engine's skin, 0.1 d (a wider one saved
-    // rebuilds in the pour but widened the EDM cells, whose width is the list's cut-off: 10 %
-    // slower hard predictions in a gas); the capture skin is smaller (default 0.01 d): a capture
-    // skin of 0.1 d spread the soft set through every gas denser than phi ~ 0.2.
-    lskin_ = std::max(skin_, kListSkin * dmin);
+    const Skins sk = hybrid_skins(sys_.radius, plan_, hs, h_);
+    skin_ = sk.capture;
+    lskin_ = sk.list;
     kstab_ = hs.stability;
     hyst_ = hs.hysteresis > 0.0 ? hs.hysteresis : 10.0 * kstab_ * plan_.contact_time;
     rest_time_ = hs.rest_time > 0.0 ? hs.rest_time : 20.0 * plan_.contact_time;
@@ -563,7 +571,6 @@ class HybridEngine final : public edm::EdmCore<D, CalendarQueue, HybridEngine<D>
       lo = lo.cwiseMin(hot_[i].x);
       hi = hi.cwiseMax(hot_[i].x);
     }
-    std::size_t cells = 1;
     const double w = sg_w_;
     for (int k = 0; k < D; ++k) {
       if (sys_.periodic[k]) {
@@ -573,31 +580,20 @@ class HybridEngine final : public edm::EdmCore<D, CalendarQueue, HybridEngine<D>
         lo[k] -= w;
         hi[k] += w;
       }
-      sg_n_[k] = std::max(1, static_cast<int>(std::min(1e6, std::floor((hi[k] - lo[k]) / w))));
     }
-    // At most about four cells per participant: coarsen uniformly (periodic axes keep three).
+    // At most about four cells per participant (periodic axes keep three).
     const double cap = 4.0 * static_cast<double>(soft_.size() + asleep_list_.size()) + 64.0;
-    for (;;) {
-      double total = 1.0;
-      for (int k = 0; k < D; ++k) total *= sg_n_[k];
-      if (total <= cap) break;
-      for (int k = 0; k < D; ++k) sg_n_[k] = std::max(sys_.periodic[k] ? 3 : 1, static_cast<int>(sg_n_[k] * 0.8));
-    }
-    for (int k = 0; k < D; ++k) {
-      sg_lo_[k] = lo[k];
-      sg_cw_[k] = (hi[k] - lo[k]) / sg_n_[k];
-      sg_stride_[k] = k == 0 ? 1 : sg_stride_[k - 1] * sg_n_[k - 1];
-      cells *= static_cast<std::size_t>(sg_n_[k]);
-    }
+    sgrid_.build(lo, hi, sys_.periodic, w, cap, 1e6);
+    const std::size_t cells = static_cast<std::size_t>(sgrid_.cells());
     sg_start_.assign(cells + 1, 0);
     sg_part_.clear();
     sg_cell_.clear();
     auto place = [&](int i) {
       int l = 0;
       for (int k = 0; k < D; ++k) {
-        const double u = (hot_[i].x[k] - sg_lo_[k]) / sg_cw_[k];
-        if (!sys_.periodic[k] && !(u >= 0.0 && u < sg_n_[k])) return;  // out of reach
-        l += std::clamp(static_cast<int>(u), 0, sg_n_[k] - 1) * sg_stride_[k];
+        const double u = (hot_[i].x[k] - sgrid_.lower()[k]) / sgrid_.width(k);
+        if (!sys_.periodic[k] && !(u >= 0.0 && u < sgrid_.count(k))) return;  // out of reach
+        l += std::clamp(static_cast<int>(u), 0, sgrid_.count(k) - 1) * sgrid_.stride(k);
       }
       sg_part_.push_back(i);
       sg_cell_.push_back(l);
@@ -614,29 +610,10 @@ class HybridEngine final : public edm::EdmCore<D, CalendarQueue, HybridEngine<D>
   // next to i, as for_neighbours).
   template <class F>
   void soft_grid_neighbours(int i, F&& f) const {
-    std::array<int, 3> nk[D];
-    std::array<double, 3> sk[D];
-    std::array<int, D> count{};
-    for (int k = 0; k < D; ++k) {
-      const int c = std::clamp(static_cast<int>((hot_[i].x[k] - sg_lo_[k]) / sg_cw_[k]), 0, sg_n_[k] - 1);
-      for (int o = -1; o <= 1; ++o) {
-        int cc = c + o;
-        double sh = 0.0;
-        if (cc < 0 || cc >= sg_n_[k]) {
-          if (!sys_.periodic[k]) continue;
-          sh = cc < 0 ? -L_[k] : L_[k];
-          cc = cc < 0 ? cc + sg_n_[k] : cc - sg_n_[k];
-        }
-        nk[k][count[k]] = cc * sg_stride_[k];
-        sk[k][count[k]] = sh;
-        ++count[k];
-      }
-    }
-    auto cell = [&](int l, const Vec<D>& shift) {
+    sgrid_.around(sgrid_.coords(hot_[i].x), [&](int l, const Vec<D>& shift) {
       for (int p = sg_start_[l], e = sg_start_[l + 1]; p < e; ++p)
         if (sg_items_[p] != i) f(sg_items_[p], shift);
-    };
-    visit_stencil(nk, sk, count, cell);
+    });
   }
 
   void watch(int j) {
@@ -714,29 +691,25 @@ class HybridEngine final : public edm::EdmCore<D, CalendarQueue, HybridEngine<D>
     for (int k = 0; k < D; ++k) {
       if (sys_.periodic[k]) {
         // A wrap changes the image shifts of its list entries: rebuild before the forces.
-        if (h.x[k] >= hi_[k]) {
-          h.x[k] -= L_[k];
-          dirty_ = true;
-        } else if (h.x[k] < lo_[k]) {
-          h.x[k] += L_[k];
+        if ((h.x[k] >= hi_[k] || h.x[k] < lo_[k]) && std::isfinite(h.x[k])) {
+          h.x[k] = wrap_periodic(h.x[k], lo_[k], hi_[k]);
           dirty_ = true;
         }
       } else if (!(h.x[k] >= lo_[k] - h.R && h.x[k] <= hi_[k] + h.R) && status_.empty()) {
         status_ = std::isfinite(h.x[k]) ? "escaped" : "unstable";
         message_ = std::isfinite(h.x[k])
-                       ? fmt::format("particle {} left the domain along axis {} at t = {:.17g} (position {:.6g}); "
-                                     "add a wall there or make the axis periodic",
-                                     i, k, t, h.x[k])
+                       ? escape_message(static_cast<std::uint64_t>(i), k, t, h.x[k])
                        : fmt::format("particle {} reached a non-finite position at t = {:.17g}: the substep {} is "
                                      "too long for the contacts (stability limit {:.6g})",
                                      i, t, h_, plan_.max_stable_dt);
       }
-      const int cc = std::isfinite(h.x[k]) ? static_cast<int>(std::floor((h.x[k] - lo_[k]) / cw_[k])) : 0;
-      c[k] = std::clamp(cc, 0, nc_[k] - 1);
+      c[k] = std::isfinite(h.x[k]) ? grid_.coord(k, h.x[k]) : 0;
+      const double cw = grid_.width(k);
+      const int nk = grid_.count(k);
       const bool closed = !sys_.periodic[k];
-      cblo_[i][k] = c[k] == 0 ? (closed ? lo_[k] - h.R : lo_[k]) : lo_[k] + c[k] * cw_[k];
-      cbhi_[i][k] = c[k] == nc_[k] - 1 ? (closed ? std::nextafter(hi_[k] + h.R, kNever) : hi_[k])
-                                       : lo_[k] + (c[k] + 1) * cw_[k];
+      cblo_[i][k] = c[k] == 0 ? (closed ? lo_[k] - h.R : lo_[k]) : lo_[k] + c[k] * cw;
+      cbhi_[i][k] = c[k] == nk - 1 ? (closed ? std::nextafter(hi_[k] + h.R, kNever) : hi_[k])
+                                   : lo_[k] + (c[k] + 1) * cw;
     }
     if (c != cold_[i].cell) {
       cell_remove(i);
@@ -1293,7 +1266,6 @@ class HybridEngine final : public edm::EdmCore<D, CalendarQueue, HybridEngine<D>
   // Hybrid state.
   HybridSettings hset_;
   SoftPlan plan_;
-  static constexpr double kListSkin = 0.1;  // soft neighbour-list skin, fraction of the smallest diameter
   double lskin_ = 0.0;
   double h_ = 0.0, hdt_ = 0.0, skin_ = 0.0, kstab_ = 0.0, hyst_ = 0.0, rest_time_ = 0.0, cost_interval_ = 0.0;
   bool rot_ = false;
@@ -1339,10 +1311,9 @@ class HybridEngine final : public edm::EdmCore<D, CalendarQueue, HybridEngine<D>
   std::vector<Spin<D>> fz_tbase_, fz_tmix_;
   std::vector<int> woken_;
   std::vector<int> fresh_, asleep_list_, asleep_slot_;
-  // Soft grid (soft_grid_build).
+  // Soft grid (soft_grid_build): the one cell grid (engine/grid.hpp) over the soft set.
   double sg_w_ = 0.0;
-  std::array<int, D> sg_n_{}, sg_stride_{};
-  Vec<D> sg_lo_ = Vec<D>::Zero(), sg_cw_ = Vec<D>::Ones();
+  CellGrid<D> sgrid_;
   bool any_periodic_ = false;
   std::vector<Vec<D>> cblo_, cbhi_;  // the box a soft particle may move in without relocating
   std::vector<int> freed_;           // soft particles released at this substep
@@ -1359,7 +1330,11 @@ class HybridEngine final : public edm::EdmCore<D, CalendarQueue, HybridEngine<D>
 template <int D>
 SoftPlan hybrid_preflight(const System<D>& system, const HybridSettings& settings) {
   SoftPlan plan = plan_soft<D>(system);
-  hybrid_substep(plan, settings);
+  const double h = hybrid_substep(plan, settings);
+  double dmax = 0.0;
+  for (double r : system.radius) dmax = std::max(dmax, 2.0 * r);
+  check_periodic_axes<D>(system.lower, system.upper, system.periodic, dmax,
+                         hybrid_skins(system.radius, plan, settings, h).list);
   return plan;
 }
 

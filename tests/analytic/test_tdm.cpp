@@ -465,7 +465,9 @@ TEST(TdmContactHistory, PairSpringSurvivesRebuildsAndOwnerSwaps) {
 }
 
 TEST(TdmContactHistory, PairSpringSurvivesAPeriodicWrap) {
-  const RunResult<3> tiny = sliding_pair(1e-6, true), big = sliding_pair(3.5, true);
+  // The big skin: as large as the periodic-axis rule allows in this box (three cells of d + skin
+  // along each periodic axis: 3 (1 + 2) <= 10), still without a rebuild that matters.
+  const RunResult<3> tiny = sliding_pair(1e-6, true), big = sliding_pair(2.0, true);
   ASSERT_EQ(tiny.status, "ok") << tiny.message;
   ASSERT_EQ(big.status, "ok") << big.message;
   EXPECT_EQ(tiny.counts.pair, 1u);

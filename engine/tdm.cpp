@@ -416,7 +416,7 @@ struct TdmEngine<D>::RangePolicy {
   double near_skin() const { return 0.0; }
   bool any_asleep() const { return false; }
   bool asleep(std::uint32_t) const { return false; }
-  double rest_speed2() const { return 0.0; }
+  bool approached(double) const { return false; }
   void wake(std::uint32_t) {}
   [[gnu::always_inline]] void partner(std::uint32_t j, const Vec<D>& f, const Spin<D>& t) {
     if (j >= lo && j < hi) {

@@ -15,6 +15,8 @@
 #include "contact/soft.hpp"
 #include "contact/timestep.hpp"
 #include "engine/edm/core.hpp"
+#include "engine/hybrid/rest.hpp"
+#include "engine/hybrid/switching.hpp"
 #include "engine/soft/forces.hpp"
 #include "engine/soft/pair_list.hpp"
 #include "engine/soft/springs.hpp"
@@ -27,6 +29,9 @@ namespace matep {
 namespace {
 
 using edm::Hot;
+using hybrid::RestRule;
+using hybrid::Switch;
+using hybrid::SwitchRule;
 
 // The hybrid's substep (run.dt, or the plan's default); throws above the stability limit.
 double hybrid_substep(const SoftPlan& plan, const HybridSettings& hs) {
@@ -191,10 +196,10 @@ class HybridEngine final : public edm::EdmCore<D, CalendarQueue, HybridEngine<D>
     kstab_ = hs.stability;
     hyst_ = hs.hysteresis > 0.0 ? hs.hysteresis : 10.0 * kstab_ * plan_.contact_time;
     rest_time_ = hs.rest_time > 0.0 ? hs.rest_time : 20.0 * plan_.contact_time;
-    cost_interval_ = hs.cost_ratio * h_;
-    repeats_ = std::max(1, hs.repeats);
+    switch_params_ = {kstab_, hs.repeats, hyst_, hs.cost_ratio * h_, kstab_ * plan_.contact_time};
     sleeping_ = hs.rest_speed > 0.0;
     rest_speed2_ = hs.rest_speed * hs.rest_speed;
+    rest_.rest_speed2 = rest_speed2_;
     // Clusters are checked four times per rest time.
     sleep_every_ = std::max<std::uint64_t>(1, static_cast<std::uint64_t>(0.25 * rest_time_ / h_));
     substep_id_ = this->add_system_event("substep", [this](double t) {
@@ -233,12 +238,10 @@ class HybridEngine final : public edm::EdmCore<D, CalendarQueue, HybridEngine<D>
     }
     last_contact_.assign(N_, 0.0);
     quiet_checks_.assign(N_, 0);
-    ema_.assign(N_, kNever);
     slot_.assign(N_, -1);
     touching_.assign(N_, 0);
     near_.assign(N_, 0);
-    recent_.assign(N_, {-1, -1});
-    rapid_.assign(N_, 0);
+    switch_.reset(N_, switch_params_);
     mode_.assign(N_, kHard);
     if (sleeping_) {
       fz_base_.assign(N_, Vec<D>::Zero());
@@ -255,7 +258,6 @@ class HybridEngine final : public edm::EdmCore<D, CalendarQueue, HybridEngine<D>
     asleep_slot_.assign(N_, -1);
     iface_flag_.assign(N_, 0);
     iface_next_.assign(N_, 0.0);
-    recent_t_.assign(N_, {-kNever, -kNever});
   }
 
   double inv_mass(int i) const { return minv_[i]; }
@@ -300,48 +302,18 @@ class HybridEngine final : public edm::EdmCore<D, CalendarQueue, HybridEngine<D>
     return soft_contact_time(*law, p, std::max(u, 1e-300));
   }
 
-  // Whether i's collision at t completes `repeats` consecutive collisions each within `window` of
-  // the previous one (the stability rule); counts them.
-  bool rapid(int i, double t, double window) {
-    if (t - cold_[i].last < window) return ++rapid_[i] >= repeats_;
-    rapid_[i] = 0;
-    return false;
-  }
-
-  // The smoothed interval between i's collisions (cost rule), updated at each collision of i.
-  void note_interval(int i, double t) {
-    const double dt = t - cold_[i].last;
-    ema_[i] = ema_[i] >= kNever ? dt : 0.5 * (ema_[i] + dt);
-  }
-  void note_partner(int i, int j, double t) {
-    recent_[i][1] = recent_[i][0];
-    recent_t_[i][1] = recent_t_[i][0];
-    recent_[i][0] = j;
-    recent_t_[i][0] = t;
-  }
-
-  // Stability and cost rules at a pair collision of hard particles i and j, both at time t and
-  // touching. Returns true when the pair (and its cluster) turned soft instead of colliding.
+  // The switching rule (engine/hybrid/switching.hpp) at a pair collision of hard particles i and j,
+  // both at time t and touching. Returns true when the pair (and its cluster) turned soft instead
+  // of colliding.
   bool soft_rule_pair(int i, int j, double t) {
-    const double since = t - std::max(cold_[i].last, cold_[j].last);
-    bool stability = false;
-    if (since < hyst_) {
+    const Switch v = switch_.pair(i, j, t, cold_[i].last, cold_[j].last, [&] {
       Vec<D> r = hot_[i].x - hot_[j].x;
       min_image(r);
       const double u = std::abs((hot_[i].v - hot_[j].v).dot(r)) / r.norm();
-      const double window = kstab_ * contact_time_of(i, j, -1, u);
-      stability = rapid(i, t, window) | rapid(j, t, window);
-    }
-    if (!(since < hyst_)) rapid_[i] = rapid_[j] = 0;
-    note_interval(i, t);
-    note_interval(j, t);
-    const bool cost = !stability && (ema_[i] < cost_interval_ || ema_[j] < cost_interval_);
-    if (!stability && !cost) {
-      note_partner(i, j, t);
-      note_partner(j, i, t);
-      return false;
-    }
-    const std::uint8_t reason = stability ? kByStability : kByCost;
+      return contact_time_of(i, j, -1, u);
+    });
+    if (v == Switch::Stay) return false;
+    const std::uint8_t reason = v == Switch::Stability ? kByStability : kByCost;
     make_pending(i, t, reason);
     make_pending(j, t, reason);
     return true;
@@ -352,15 +324,10 @@ class HybridEngine final : public edm::EdmCore<D, CalendarQueue, HybridEngine<D>
     const WallPoint<D> c = wall.at(hot_[i].x, hot_[i].R, t);
     if (wall_checkpoint(i, wall, c)) return false;  // a checkpoint of the bracketing, not an impact
     const double un = (hot_[i].v - c.velocity).dot(c.normal);
-    const double since = t - cold_[i].last;
     // Resting on the wall (no normal speed left) is the zero-time limit of a bouncing sequence.
-    bool stability = !(un < 0.0);
-    if (!stability && since < hyst_) stability = rapid(i, t, kstab_ * contact_time_of(i, -1, w, -un));
-    if (!(since < hyst_)) rapid_[i] = 0;
-    note_interval(i, t);
-    const bool cost = !stability && ema_[i] < cost_interval_;
-    if (!stability && !cost) return false;
-    make_pending(i, t, stability ? kByStability : kByCost);
+    const Switch v = switch_.wall(i, t, cold_[i].last, !(un < 0.0), [&] { return contact_time_of(i, -1, w, -un); });
+    if (v == Switch::Stay) return false;
+    make_pending(i, t, v == Switch::Stability ? kByStability : kByCost);
     return true;
   }
 
@@ -377,11 +344,9 @@ class HybridEngine final : public edm::EdmCore<D, CalendarQueue, HybridEngine<D>
     ++cold_[i].counter;  // partners' predictions with i are stale
     start_clock(t);
     // The cluster: partners of collisions within the stability window k t_c (t_c of the plan).
-    for (int k = 0; k < 2; ++k) {
-      const int j = recent_[i][k];
-      if (j < 0 || mode_[j] != kHard) continue;
-      if (t - recent_t_[i][k] < kstab_ * plan_.contact_time) make_pending(j, t, kByCluster);
-    }
+    switch_.cluster(i, t, [&](int j) {
+      if (mode_[j] == kHard) make_pending(j, t, kByCluster);
+    });
   }
 
   void log_switch(int i, double t, EventKind kind) {
@@ -423,7 +388,7 @@ class HybridEngine final : public edm::EdmCore<D, CalendarQueue, HybridEngine<D>
     }
     last_contact_[i] = t;
     quiet_checks_[i] = 0;
-    ema_[i] = kNever;
+    switch_.forget_interval(i);
     ++hstats_.to_soft;
     switch (reason) {
       case kByStability: ++hstats_.by_stability; break;
@@ -448,8 +413,7 @@ class HybridEngine final : public edm::EdmCore<D, CalendarQueue, HybridEngine<D>
     dirty_ = true;
     hot_[i].t = t;
     cold_[i].last = -kNever;  // its collisions as a soft particle do not count for the rules
-    ema_[i] = kNever;
-    recent_[i] = {-1, -1};
+    switch_.forget(i);
     ++cold_[i].counter;
     ++hstats_.to_hard;
     log_switch(i, t, EventKind::ToHard);
@@ -889,7 +853,8 @@ class HybridEngine final : public edm::EdmCore<D, CalendarQueue, HybridEngine<D>
     std::uint8_t* LOST;
     Vec<D>* FF;
     Spin<D>* TQ;
-    double skin, rest2;
+    double skin;
+    RestRule rest;
     bool onset_ok, sleepers;
     std::uint64_t begun = 0;
     double vir = 0.0;
@@ -910,7 +875,7 @@ class HybridEngine final : public edm::EdmCore<D, CalendarQueue, HybridEngine<D>
     double near_skin() const { return skin; }
     bool any_asleep() const { return sleepers; }
     bool asleep(std::uint32_t i) const { return MODE[i] == kAsleep; }
-    double rest_speed2() const { return rest2; }
+    bool approached(double un) const { return rest.approached(un); }
     void wake(std::uint32_t k) { LOST[k] = 1; }
     [[gnu::always_inline]] void partner(std::uint32_t j, const Vec<D>& f, const Spin<D>& t) {
       FF[j] += f;
@@ -925,7 +890,7 @@ class HybridEngine final : public edm::EdmCore<D, CalendarQueue, HybridEngine<D>
     const double h = h_;
     const bool onset_ok = wall_t_ > 0.0;
     SoftPolicy<Rot> pol{ctab_.data(), pairs_.c.data(), touching_.data(), near_.data(), mode_.data(),
-                        fz_lost_.data(), f_.data(), tq_.data(), skin_, rest_speed2_, onset_ok, asleep_ > 0};
+                        fz_lost_.data(), f_.data(), tq_.data(), skin_, rest_, onset_ok, asleep_ > 0};
     soft::Bodies<D> b;
     b.v = vh_.data();
     b.acc = acc_.data();
@@ -1037,13 +1002,13 @@ class HybridEngine final : public edm::EdmCore<D, CalendarQueue, HybridEngine<D>
     for (const int i : soft_) {
       double s2 = hot_[i].v.squaredNorm();
       if (rot_) s2 += sys_.w[i].squaredNorm() * hot_[i].R * hot_[i].R;
-      quiet_checks_[i] = s2 < rest_speed2_ ? quiet_checks_[i] + 1 : 0;
+      quiet_checks_[i] = rest_.quiet(quiet_checks_[i], s2);
     }
     for (const auto& e : we_)
       if (shapes_[e.w]->moving()) quiet_checks_[e.i] = 0;
     bool any = false;
     for (const int i : soft_) {
-      const bool c = quiet_checks_[i] >= 4;
+      const bool c = RestRule::candidate(quiet_checks_[i]);
       fz_cand_[i] = c;
       any |= c;
       if (c) {
@@ -1083,11 +1048,9 @@ class HybridEngine final : public edm::EdmCore<D, CalendarQueue, HybridEngine<D>
       if (fz_cand_[i]) {
         fz_cand_[i] = 0;
         const double m = mass(i);
-        // Wake threshold W = rest_speed sqrt(m k), k the sum of its contacts' normal stiffnesses:
-        // a load change below W stores less elastic energy, W^2/(2k), than the kinetic energy of
-        // a grain at rest_speed, m rest_speed^2/2 (motion the rule counts as rest).
-        fz_scale_[i] = std::sqrt(rest_speed2_ * m * fz_scale_[i]);
-        if ((fz_base_[i] + m * g_).squaredNorm() <= fz_scale_[i] * fz_scale_[i]) {
+        // Wake threshold W (engine/hybrid/rest.hpp) from the sum of its contact stiffnesses.
+        fz_scale_[i] = rest_.wake_threshold(m, fz_scale_[i]);
+        if (RestRule::balanced(fz_base_[i], m, g_, fz_scale_[i])) {
           freeze(i);
           fz_cand_[i] = 1;  // now: fell asleep at this check
           fresh_.push_back(i);
@@ -1163,7 +1126,7 @@ class HybridEngine final : public edm::EdmCore<D, CalendarQueue, HybridEngine<D>
       const Vec<D> dev = f_[j] - fz_mix_[j];
       const bool lost = fz_lost_[j];
       fz_lost_[j] = 0;
-      if (lost || dev.squaredNorm() > fz_scale_[j] * fz_scale_[j]) {
+      if (lost || RestRule::loaded(dev, fz_scale_[j])) {
         f_[j] = dev + fz_base_[j];
         if (rot_) tq_[j] += fz_tbase_[j] - fz_tmix_[j];
         mode_[j] = kSoft;
@@ -1267,7 +1230,10 @@ class HybridEngine final : public edm::EdmCore<D, CalendarQueue, HybridEngine<D>
   HybridSettings hset_;
   SoftPlan plan_;
   double lskin_ = 0.0;
-  double h_ = 0.0, hdt_ = 0.0, skin_ = 0.0, kstab_ = 0.0, hyst_ = 0.0, rest_time_ = 0.0, cost_interval_ = 0.0;
+  double h_ = 0.0, hdt_ = 0.0, skin_ = 0.0, kstab_ = 0.0, hyst_ = 0.0, rest_time_ = 0.0;
+  SwitchRule::Params switch_params_;
+  SwitchRule switch_;  // engine/hybrid/switching.hpp
+  RestRule rest_;      // engine/hybrid/rest.hpp
   bool rot_ = false;
   int substep_id_ = -1;
   bool clock_ = false;
@@ -1279,20 +1245,16 @@ class HybridEngine final : public edm::EdmCore<D, CalendarQueue, HybridEngine<D>
   HybridStats hstats_;
   std::vector<Vec<D>> vh_, acc_, f_, x0_;  // x0_: position at the last list build (or join)
   std::vector<Spin<D>> wh_, alpha_, tq_;
-  std::vector<double> minv_, iinv_, last_contact_, ema_;
+  std::vector<double> minv_, iinv_, last_contact_;
   std::vector<int> quiet_checks_;
   std::vector<int> slot_, soft_, pending_, iface_;
   std::vector<std::uint8_t> pending_reason_, touching_, near_;
-  std::vector<int> rapid_;
-  int repeats_ = 1;
   // Per particle, one byte each (read for every neighbour of a prediction: kept compact).
   std::vector<std::uint8_t> mode_;        // kHard, kSoft, kPending, kAsleep
   std::vector<std::uint8_t> iface_flag_;  // a hard particle on the interface list
   std::vector<double> iface_next_;        // its next capture check (substep time)
   double vsoft_max_ = 0.0;                // fastest awake soft particle at the last substep
   static constexpr double kMaxSkip = 64.0;
-  std::vector<std::array<int, 2>> recent_;
-  std::vector<std::array<double, 2>> recent_t_;
   bool uniform_ = false;              // one material and one radius: ctab_ = {pair, wall 0, wall 1, ...}
   std::vector<SoftContact> ctab_;
   std::map<ContactKey, std::uint32_t> ckeys_;

@@ -71,7 +71,7 @@ struct PairRows {
 //   const SoftContact& contact(e, i, j, SoftContact& scratch);
 //   void began();  void opened(i, j);  void overlap(delta, Rs);
 //   void touching(i, j);  void near(i, j);  double near_skin() const;
-//   bool any_asleep() const;  bool asleep(i) const;  double rest_speed2() const;  void wake(k);
+//   bool any_asleep() const;  bool asleep(i) const;  bool approached(un) const;  void wake(k);
 //   void partner(j, Fj, tj);  void virial(F, dx);  void row_done(i);
 template <int D, NormalLaw Law, bool Rot, class Pos, class Policy>
 [[gnu::always_inline]] inline void pair_rows(const Pos P, const Bodies<D>& b, const PairRows<D>& L, std::uint32_t r0,
@@ -144,7 +144,7 @@ template <int D, NormalLaw Law, bool Rot, class Pos, class Policy>
           sleep_j = pol.asleep(j);
           if (sleep_i || sleep_j) {
             const double un = (vhi - V[j]).dot(n);  // < 0: approaching (n points from j to i)
-            if (un < 0.0 && un * un > pol.rest_speed2()) pol.wake(sleep_i ? i : j);
+            if (pol.approached(un)) pol.wake(sleep_i ? i : j);
           }
         }
       }

@@ -1,0 +1,120 @@
+// The hybrid's switching rule (engine/hybrid.hpp states it; README "Hybrid dynamics"), on its own:
+// at a collision of hard particles it says whether they stay hard or turn soft, and why.
+//  * stability: the collision is the `repeats`-th in a row of a particle, each within k t_c of
+//    its previous one (t_c: the soft contact duration of this impact), while the particle has
+//    collided within the hysteresis time;
+//  * cost: the smoothed interval between a particle's collisions (an exponential average with
+//    weight 1/2) is below cost_interval, the crossover where TDM substeps are cheaper;
+//  * a wall collision without normal approach (resting on the wall) counts as unstable.
+// The rule also remembers each particle's two most recent partners, whose collisions within the
+// cluster window make them turn soft together (cluster()).
+#pragma once
+
+#include <array>
+#include <cstdint>
+#include <limits>
+#include <vector>
+
+namespace matep::hybrid {
+
+enum class Switch : std::uint8_t { Stay, Stability, Cost };
+
+class SwitchRule {
+ public:
+  struct Params {
+    double stability = 2.0;        // k
+    int repeats = 3;
+    double hysteresis = 0.0;       // collisions further apart than this reset the count
+    double cost_interval = 0.0;    // cost_ratio x substep
+    double cluster_window = 0.0;   // k x the plan's contact time
+  };
+
+  void reset(int n, const Params& p) {
+    p_ = p;
+    if (p_.repeats < 1) p_.repeats = 1;
+    rapid_.assign(n, 0);
+    ema_.assign(n, kNever);
+    recent_.assign(n, {-1, -1});
+    recent_t_.assign(n, {-kNever, -kNever});
+  }
+  const Params& params() const { return p_; }
+
+  // A pair collision of hard particles i and j at t; last_i, last_j: the times of their previous
+  // collisions (-infinity if none); contact_time(): t_c of this impact (called only when needed).
+  template <class Tc>
+  Switch pair(int i, int j, double t, double last_i, double last_j, Tc&& contact_time) {
+    const double since = t - (last_i > last_j ? last_i : last_j);
+    bool stability = false;
+    if (since < p_.hysteresis) {
+      const double window = p_.stability * contact_time();
+      stability = rapid(i, t, last_i, window) | rapid(j, t, last_j, window);
+    }
+    if (!(since < p_.hysteresis)) rapid_[i] = rapid_[j] = 0;
+    note_interval(i, t, last_i);
+    note_interval(j, t, last_j);
+    if (stability) return Switch::Stability;
+    if (ema_[i] < p_.cost_interval || ema_[j] < p_.cost_interval) return Switch::Cost;
+    note_partner(i, j, t);
+    note_partner(j, i, t);
+    return Switch::Stay;
+  }
+
+  // A wall collision of hard i at t (resting: no normal approach left).
+  template <class Tc>
+  Switch wall(int i, double t, double last_i, bool resting, Tc&& contact_time) {
+    const double since = t - last_i;
+    bool stability = resting;
+    if (!stability && since < p_.hysteresis) stability = rapid(i, t, last_i, p_.stability * contact_time());
+    if (!(since < p_.hysteresis)) rapid_[i] = 0;
+    note_interval(i, t, last_i);
+    if (stability) return Switch::Stability;
+    if (ema_[i] < p_.cost_interval) return Switch::Cost;
+    return Switch::Stay;
+  }
+
+  // f(j) for the recent partners of i whose collision with it lies within the cluster window of t.
+  template <class F>
+  void cluster(int i, double t, F&& f) const {
+    for (int k = 0; k < 2; ++k) {
+      const int j = recent_[i][k];
+      if (j >= 0 && t - recent_t_[i][k] < p_.cluster_window) f(j);
+    }
+  }
+
+  // i joined the soft set (its interval average restarts) or returned hard (partners forgotten).
+  void forget_interval(int i) { ema_[i] = kNever; }
+  void forget(int i) {
+    ema_[i] = kNever;
+    recent_[i] = {-1, -1};
+  }
+
+  double interval(int i) const { return ema_[i]; }
+  int rapid_count(int i) const { return rapid_[i]; }
+
+ private:
+  static constexpr double kNever = std::numeric_limits<double>::infinity();
+
+  bool rapid(int i, double t, double last, double window) {
+    if (t - last < window) return ++rapid_[i] >= p_.repeats;
+    rapid_[i] = 0;
+    return false;
+  }
+  void note_interval(int i, double t, double last) {
+    const double dt = t - last;
+    ema_[i] = ema_[i] >= kNever ? dt : 0.5 * (ema_[i] + dt);
+  }
+  void note_partner(int i, int j, double t) {
+    recent_[i][1] = recent_[i][0];
+    recent_t_[i][1] = recent_t_[i][0];
+    recent_[i][0] = j;
+    recent_t_[i][0] = t;
+  }
+
+  Params p_;
+  std::vector<int> rapid_;
+  std::vector<double> ema_;
+  std::vector<std::array<int, 2>> recent_;
+  std::vector<std::array<double, 2>> recent_t_;
+};
+
+}  // namespace matep::hybrid

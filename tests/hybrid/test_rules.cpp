@@ -1,0 +1,148 @@
+// The hybrid's switching and rest rules on their own (engine/hybrid/switching.hpp, rest.hpp), fed
+// with collision times and forces chosen here, without running an engine.
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <limits>
+
+#include "contact/vec.hpp"
+#include "engine/hybrid/rest.hpp"
+#include "engine/hybrid/switching.hpp"
+
+namespace matep::hybrid {
+namespace {
+
+constexpr double kNever = std::numeric_limits<double>::infinity();
+
+SwitchRule rule(int n = 4) {
+  SwitchRule r;
+  SwitchRule::Params p;
+  p.stability = 2.0;
+  p.repeats = 3;
+  p.hysteresis = 1.0;
+  p.cost_interval = 1e-3;
+  p.cluster_window = 0.02;
+  r.reset(n, p);
+  return r;
+}
+
+// t_c = 0.01: the stability window is k t_c = 0.02.
+auto tc = [] { return 0.01; };
+
+TEST(SwitchRule, TheRepeatsThCollisionWithinTheWindowTurnsThePairSoft) {
+  SwitchRule r = rule();
+  // Particle 0 collides with 1 at t = 0.5 (first collisions: nothing to compare with), then with
+  // 2 every 0.015 < 0.02: the third rapid collision in a row is the switch.
+  EXPECT_EQ(r.pair(0, 1, 0.5, -kNever, -kNever, tc), Switch::Stay);
+  double last0 = 0.5, last2 = -kNever;
+  double t = 0.5;
+  for (int k = 1; k <= 2; ++k) {
+    t += 0.015;
+    EXPECT_EQ(r.pair(0, 2, t, last0, last2, tc), Switch::Stay) << k;
+    last0 = last2 = t;
+  }
+  t += 0.015;
+  EXPECT_EQ(r.pair(0, 2, t, last0, last2, tc), Switch::Stability);
+}
+
+TEST(SwitchRule, ASlowCollisionBreaksTheRun) {
+  SwitchRule r = rule();
+  double t = 0.0, last = -kNever;
+  for (double dt : {0.015, 0.015, 0.03, 0.015, 0.015}) {  // the 0.03 gap (> 0.02) resets the count
+    t += dt;
+    EXPECT_EQ(r.pair(0, 1, t, last, last, tc), Switch::Stay) << t;
+    last = t;
+  }
+  EXPECT_EQ(r.rapid_count(0), 2);
+  t += 0.015;
+  EXPECT_EQ(r.pair(0, 1, t, last, last, tc), Switch::Stability);
+}
+
+TEST(SwitchRule, TheWindowIsAskedOnlyWithinTheHysteresis) {
+  SwitchRule r = rule();
+  int asked = 0;
+  auto count = [&] {
+    ++asked;
+    return 0.01;
+  };
+  r.pair(0, 1, 5.0, 2.0, 3.0, count);  // 2 > hysteresis 1 since the last collision
+  EXPECT_EQ(asked, 0);
+  r.pair(0, 1, 5.5, 5.0, 5.0, count);
+  EXPECT_EQ(asked, 1);
+}
+
+TEST(SwitchRule, CostSwitchesWhenTheSmoothedIntervalFallsBelowTheCrossover) {
+  SwitchRule r = rule();
+  // t_c tiny: the stability rule never fires. The first finite interval starts the average; each
+  // later one is averaged with weight 1/2: 3 ms, then 0.5 ms gives 1.75 ms, 1.125 ms, 0.8125 ms
+  // (below the 1 ms crossover: cost).
+  auto tiny = [] { return 1e-9; };
+  double t = 0.0, last = -kNever;
+  EXPECT_EQ(r.pair(0, 1, t, last, last, tiny), Switch::Stay);  // no interval yet
+  last = t;
+  t += 3e-3;
+  EXPECT_EQ(r.pair(0, 1, t, last, last, tiny), Switch::Stay);
+  EXPECT_DOUBLE_EQ(r.interval(0), 3e-3);
+  for (const double expected : {1.75e-3, 1.125e-3}) {
+    last = t;
+    t += 0.5e-3;
+    EXPECT_EQ(r.pair(0, 1, t, last, last, tiny), Switch::Stay);
+    EXPECT_NEAR(r.interval(0), expected, 1e-15);
+  }
+  last = t;
+  t += 0.5e-3;
+  EXPECT_EQ(r.pair(0, 1, t, last, last, tiny), Switch::Cost);
+  EXPECT_NEAR(r.interval(0), 0.8125e-3, 1e-15);
+  // A particle that returned hard starts its average again.
+  r.forget(0);
+  EXPECT_EQ(r.interval(0), kNever);
+}
+
+TEST(SwitchRule, RestingOnAWallIsUnstableAndClusterFollowsRecentPartners) {
+  SwitchRule r = rule();
+  EXPECT_EQ(r.wall(0, 1.0, -kNever, /*resting=*/true, tc), Switch::Stability);
+  EXPECT_EQ(r.wall(1, 1.0, -kNever, /*resting=*/false, tc), Switch::Stay);
+  // Partners within the cluster window (0.02) of t join; older ones do not.
+  r.pair(2, 3, 2.00, -kNever, -kNever, tc);
+  r.pair(2, 1, 2.05, 2.00, 1.0, tc);
+  std::vector<int> seen;
+  r.cluster(2, 2.06, [&](int j) { seen.push_back(j); });
+  EXPECT_EQ(seen, std::vector<int>{1});
+  seen.clear();
+  r.cluster(2, 2.015, [&](int j) { seen.push_back(j); });
+  EXPECT_EQ(seen, (std::vector<int>{1, 3}));
+}
+
+TEST(RestRule, WakeThresholdStoresTheKineticEnergyOfARestingGrain) {
+  RestRule r;
+  const double v = 0.01, m = 2e-3, k = 5e4;
+  r.rest_speed2 = v * v;
+  const double W = r.wake_threshold(m, k);
+  // W^2 / (2k) = m v^2 / 2.
+  EXPECT_NEAR(W * W / (2.0 * k), 0.5 * m * v * v, 1e-15 * m * v * v);
+}
+
+TEST(RestRule, QuietChecksBalanceLoadAndApproach) {
+  RestRule r;
+  r.rest_speed2 = 1e-4;
+  int q = 0;
+  for (int k = 0; k < RestRule::kQuietChecks - 1; ++k) q = r.quiet(q, 0.5e-4);
+  EXPECT_FALSE(RestRule::candidate(q));
+  q = r.quiet(q, 0.5e-4);
+  EXPECT_TRUE(RestRule::candidate(q));
+  EXPECT_EQ(r.quiet(q, 2e-4), 0);  // one fast check starts over
+  const Vec<3> g(0.0, 0.0, -9.81);
+  const double m = 1e-3, W = 1e-4;
+  const Vec<3> support = -m * g;
+  EXPECT_TRUE(RestRule::balanced(support, m, g, W));
+  EXPECT_TRUE(RestRule::balanced(Vec<3>(support + Vec<3>(0.9e-4, 0.0, 0.0)), m, g, W));
+  EXPECT_FALSE(RestRule::balanced(Vec<3>(support + Vec<3>(0.0, 1.1e-4, 0.0)), m, g, W));
+  EXPECT_FALSE(RestRule::loaded(Vec<3>(0.0, 0.0, 0.9e-4), W));
+  EXPECT_TRUE(RestRule::loaded(Vec<3>(0.0, 0.0, 1.1e-4), W));
+  EXPECT_TRUE(r.approached(-0.011));
+  EXPECT_FALSE(r.approached(-0.009));
+  EXPECT_FALSE(r.approached(0.02));  // receding
+}
+
+}  // namespace
+}  // namespace matep::hybrid

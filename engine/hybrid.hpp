@@ -1,5 +1,5 @@
 // Hybrid dynamics: one event queue in which hard particles fly between predicted collisions (the
-// EDM engine of engine/edm.cpp) and a soft set, the particles of dense or collapsing clusters, is
+// EDM core of engine/edm/core.hpp) and a soft set, the particles of dense or collapsing clusters, is
 // advanced by fixed TDM substeps (the scheme and contact laws of engine/tdm.hpp), each substep an
 // event of the same queue. README "Hybrid dynamics" states the rule and its measured parameters:
 //  * stability: a hard particle that collides again within `stability` * t_c of its previous

@@ -10,7 +10,7 @@
 // scheduled under ids N, N + 1, ... after the particles.
 //
 // Read top to bottom: set-up (init), the event loop (run), cells, motion, prediction, handling,
-// collisions, observers. The core is a CRTP base: pure EDM (engine/edm.cpp) adds nothing, the
+// collisions, observers. The core is a CRTP base: pure EDM (engine/edm/edm.cpp) adds nothing, the
 // hybrid (engine/hybrid/) extends it through the hooks in "Extension hooks" below, which a pure
 // EDM run resolves at compile time to nothing.
 #pragma once
@@ -582,18 +582,9 @@ class EdmCore {
     note_collision(i);
     note_collision(j);
     if (log) {
-      rec.time = now_;
-      rec.kind = EventKind::PairCollision;
-      rec.i = static_cast<std::uint32_t>(i);
-      rec.j = static_cast<std::uint32_t>(j);
-      rec.mi = mass(i);
       rec.mj = mass(j);
-      rec.e = e;
-      rec.normal = n;
-      rec.vi_after = a.v;
       rec.vj_after = b.v;
-      fill_spins(rec, i, j);
-      for (auto* o : collision_observers_) o->on_collision(rec);
+      emit_collision(rec, EventKind::PairCollision, i, j, e, n);
     }
   }
 
@@ -638,19 +629,25 @@ class EdmCore {
     ++counts_.wall;
     note_collision(i);
     if (log) {
-      rec.time = now_;
-      rec.kind = EventKind::WallCollision;
-      rec.i = static_cast<std::uint32_t>(i);
-      rec.j = static_cast<std::uint32_t>(w);
-      rec.mi = mass(i);
-      rec.e = e;
-      rec.normal = normal;
-      rec.vi_after = a.v;
       rec.vj_before = u;
       rec.vj_after = u;
-      fill_spins(rec, i, -1);
-      for (auto* o : collision_observers_) o->on_collision(rec);
+      emit_collision(rec, EventKind::WallCollision, i, w, e, normal);
     }
+  }
+
+  // Completes a collision record of i with j (a particle, or the index of a wall) and hands it to the
+  // observers that want collisions.
+  void emit_collision(CollisionRecord<D>& rec, EventKind kind, int i, int j, double e, const Vec<D>& n) {
+    rec.time = now_;
+    rec.kind = kind;
+    rec.i = static_cast<std::uint32_t>(i);
+    rec.j = static_cast<std::uint32_t>(j);
+    rec.mi = mass(i);
+    rec.e = e;
+    rec.normal = n;
+    rec.vi_after = hot_[i].v;
+    fill_spins(rec, i, kind == EventKind::PairCollision ? j : -1);
+    for (auto* o : collision_observers_) o->on_collision(rec);
   }
 
   // The spins of i (and j >= 0) into the record's before or after fields.

@@ -124,7 +124,7 @@ class HybridEngine final : public edm::EdmCore<D, CalendarQueue, HybridEngine<D>
   HybridSettings given_settings_;
   const SoftPlan* given_plan_ = nullptr;
 
-  // Soft particles carry the TDM state of engine/tdm.cpp's scheme: between substeps vh_ holds
+  // Soft particles carry the TDM state of engine/soft/verlet.hpp's scheme: between substeps vh_ holds
   // v(t - h/2), acc_ a(t - h) (for the predicted velocity of the dashpots), f_/tq_ the force and
   // torque at t; hot_.x and hot_.t the position and time of the last substep, hot_.v and sys_.w the
   // full-step velocity and spin v(t) = v(t - h/2) + h/2 a(t) (for samples, snapshots and release).
@@ -891,14 +891,8 @@ class HybridEngine final : public edm::EdmCore<D, CalendarQueue, HybridEngine<D>
     const bool onset_ok = wall_t_ > 0.0;
     SoftPolicy<Rot> pol{ctab_.data(), pairs_.c.data(), touching_.data(), near_.data(), mode_.data(),
                         fz_lost_.data(), f_.data(), tq_.data(), skin_, rest_, onset_ok, asleep_ > 0};
-    soft::Bodies<D> b;
-    b.v = vh_.data();
-    b.acc = acc_.data();
-    b.f = f_.data();
-    b.w = wh_.data();
-    b.alpha = alpha_.data();
-    b.tq = tq_.data();
-    soft::pair_rows<D, Law, Rot>(soft::Records<D, Hot<D>>{hot_.data()}, b, pairs_.as_rows(shifts_.data()), 0,
+    soft::pair_rows<D, Law, Rot>(soft::Records<D, Hot<D>>{hot_.data()}, soft::bodies_of(vh_, acc_, f_, wh_, alpha_, tq_),
+                                 pairs_.as_rows(shifts_.data()), 0,
                                  static_cast<std::uint32_t>(pairs_.rows()), h, pol);
     std::uint64_t begun = pol.begun;
     const Spin<D> no_spin = Spin<D>::Zero();
@@ -916,7 +910,7 @@ class HybridEngine final : public edm::EdmCore<D, CalendarQueue, HybridEngine<D>
     virial_ += pol.vir * h;  // impulse times distance over the substep, as the hard collisions
   }
 
-  // Elastic energy stored in the soft contacts (engine/tdm.cpp sample()).
+  // Elastic energy stored in the soft contacts (engine/tdm/tdm.cpp sample()).
   double soft_elastic_energy() const {
     double el = 0.0;
     auto stored = [](const SoftContact& c, double delta, const Vec<D>& xi) { return stored_energy<D>(c, delta, xi); };

@@ -17,6 +17,7 @@
 
 #include <cmath>
 #include <cstdint>
+#include <vector>
 
 #include "contact/soft.hpp"
 #include "contact/wall.hpp"
@@ -34,6 +35,13 @@ struct Bodies {
   const Spin<D>* alpha = nullptr;  // angular accelerations (rotation only)
   Spin<D>* tq = nullptr;           // torques being accumulated (rotation only)
 };
+
+// The Bodies of an engine's state vectors (rotation arrays may be empty when nothing rotates).
+template <int D>
+Bodies<D> bodies_of(const std::vector<Vec<D>>& v, const std::vector<Vec<D>>& acc, std::vector<Vec<D>>& f,
+                    const std::vector<Spin<D>>& w, const std::vector<Spin<D>>& alpha, std::vector<Spin<D>>& tq) {
+  return {v.data(), acc.data(), f.data(), w.data(), alpha.data(), tq.data()};
+}
 
 // Positions and radii, as separate arrays (TDM) or inside each particle's record (the hybrid: the
 // EDM core's hot state). The loop copies the accessor, so its pointers stay in registers.
@@ -63,6 +71,12 @@ struct PairRows {
   std::uint8_t* touch = nullptr;
   Vec<D>* xi = nullptr;
   const Vec<D>* shift = nullptr;  // image shifts by index
+
+  // Rows 0 .. n - 1 of particles 0 .. n - 1 (owner null) or of owner[r], as CSR arrays.
+  static PairRows of(const std::uint32_t* owner, const std::uint32_t* off, const std::uint32_t* nb,
+                     const std::uint8_t* sh, std::uint8_t* touch, Vec<D>* xi, const Vec<D>* shift) {
+    return {owner, off, nb, sh, touch, xi, shift};
+  }
 };
 
 // Pair forces of rows [r0, r1). The policy provides (see the engines for the two):

@@ -105,15 +105,7 @@ class PairList {
   }
 
   PairRows<D> as_rows(const Vec<D>* shifts) {
-    PairRows<D> r;
-    r.owner = owner.data();
-    r.off = off.data();
-    r.nb = nb.data();
-    r.sh = sh.data();
-    r.touch = touch.data();
-    r.xi = xi.data();
-    r.shift = shifts;
-    return r;
+    return PairRows<D>::of(owner.data(), off.data(), nb.data(), sh.data(), touch.data(), xi.data(), shifts);
   }
 
  private:

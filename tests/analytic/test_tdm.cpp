@@ -209,7 +209,7 @@ TEST(TdmEnergy, PolydisperseHertzGasConservesEnergy) {
 // engine evaluates the dashpots at the predicted full-step velocity for exactly that reason, see
 // engine/tdm.hpp). Most contacts start at t = 0 (touching or already overlapping); the "gap" cases
 // start apart, so the first touch falls inside a step: the linear dashpot's force jumps there, and
-// only the engine's first-step weight (tau/h + 1/2, engine/tdm.cpp at_onset) keeps them second
+// only the engine's first-step weight (tau/h + 1/2, contact/soft.hpp at_onset) keeps them second
 // order (without it the error falls by about 2 per halving).
 
 namespace {

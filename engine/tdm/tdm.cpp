@@ -444,21 +444,10 @@ template <bool Rot, bool Uniform, NormalLaw Law, bool Fuse>
 [[gnu::flatten]] void TdmEngine<D>::pair_range(int t) {
   Acc& acc = acc_t_[t];
   RangePolicy<Rot, Uniform, Law, Fuse> pol{*this, acc, spill_[t], lo_[t], hi_[t], wlo_[t], whi_[t]};
-  soft::Bodies<D> b;
-  b.v = v_.data();
-  b.acc = acc_.data();
-  b.f = f_.data();
-  b.w = w_.data();
-  b.alpha = alpha_.data();
-  b.tq = tq_.data();
-  soft::PairRows<D> rows;
-  rows.off = off_.data();
-  rows.nb = nb_.data();
-  rows.sh = sh_.data();
-  rows.touch = touch_.data();
-  rows.xi = xi_.data();
-  rows.shift = shifts_.data();
-  soft::pair_rows<D, Law, Rot>(soft::Arrays<D>{x_.data(), R_.data()}, b, rows, lo_[t], hi_[t], dt_, pol);
+  const auto rows = soft::PairRows<D>::of(nullptr, off_.data(), nb_.data(), sh_.data(), touch_.data(), xi_.data(),
+                                          shifts_.data());
+  soft::pair_rows<D, Law, Rot>(soft::Arrays<D>{x_.data(), R_.data()}, soft::bodies_of(v_, acc_, f_, w_, alpha_, tq_),
+                               rows, lo_[t], hi_[t], dt_, pol);
   acc.moved = pol.moved;
 }
 

@@ -51,7 +51,9 @@ class PlaneWall final : public WallShape<D> {
     return s;
   }
   WallPoint<D> at(const Vec<D>& x, double R, double t) const override {
-    return {(x - position(t)).dot(normal) - R, normal, velocity(t)};
+    if (!oscillating()) return {(x - point).dot(normal) - R, normal, Vec<D>::Zero()};
+    const double w = angular_frequency();
+    return {(x - Vec<D>(point + std::sin(w * t) * amplitude)).dot(normal) - R, normal, (w * std::cos(w * t)) * amplitude};
   }
   Vec<D> surface_velocity(const Vec<D>&, double, double t) const override { return velocity(t); }
   double impact_time(const Vec<D>& x, const Vec<D>& v, const Vec<D>& g, double R, double t0,

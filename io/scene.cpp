@@ -569,7 +569,7 @@ Scene build_scene(toml::table& root, const std::string& file, const fs::path& ba
   scene.seed = static_cast<std::uint64_t>(run.integer_or("seed", 1, kNonNegative));
   scene.queue = run.string_opt("queue", {"calendar", "heap"}).value_or("calendar");
   scene.tc = run.number_or("tc", 0.0, kNonNegative);
-  scene.collapse_count = static_cast<int>(run.integer_or("collapse_count", 1000, Range{2.0, 2147483647.0}));
+  scene.collapse_count = static_cast<int>(run.integer_or("collapse_count", EdmSettings{}.collapse_count, Range{2.0, 2147483647.0}));
   scene.collapse_window = run.number_or("collapse_window", 0.0, kNonNegative);
   scene.max_events = static_cast<std::uint64_t>(run.integer_or("max_events", 0, kNonNegative));
   scene.dt = run.number_opt("dt", kPositive);

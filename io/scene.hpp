@@ -46,7 +46,7 @@ struct Scene {
   double end_time = 1.0;
   std::uint64_t seed = 1;
   double tc = 0.0;                // run.tc, TC model; 0 = off
-  int collapse_count = 1000;      // run.collapse_count
+  int collapse_count = EdmSettings{}.collapse_count;  // run.collapse_count (the engine's default)
   double collapse_window = 0.0;   // run.collapse_window; 0 = 1e-9 * end_time
   std::uint64_t max_events = 0;   // run.max_events; 0 = unlimited
   std::optional<double> dt;       // run.dt (soft-sphere time step, > 0); unset = engine's choice

@@ -139,6 +139,7 @@ class HybridEngine final : public edm::EdmCore<D, CalendarQueue, HybridEngine<D>
   void ext_setup() { hybrid_setup(given_settings_, given_plan_); }
   double ext_cell_margin() const { return lskin_; }  // the cells hold every particle within the list skin
   void ext_cells_ready(double rmax) {
+    for (const WallShape<D>* w : shapes_) planes_.push_back(as_plane<D>(w));
     sg_w_ = 2.0 * rmax + lskin_;
     for (int k = 0; k < D; ++k) any_periodic_ = any_periodic_ || sys_.periodic[k];
     hybrid_arrays();
@@ -842,9 +843,9 @@ class HybridEngine final : public edm::EdmCore<D, CalendarQueue, HybridEngine<D>
   // touching and nearby particles are flagged for the release rule, a sleeping end (rest rule) is
   // pushed by the springs only and wakes when approached fast or when a contact opens, and the
   // virial of the contact forces adds to the hard collisions'.
-  template <bool Rot>
+  template <bool Rot, bool Periodic>
   struct SoftPolicy {
-    static constexpr bool kSleepers = true, kNear = true, kVirial = true;
+    static constexpr bool kSleepers = true, kNear = true, kVirial = true, kShifts = Periodic, kFlat = true;
     const SoftContact* C;
     const std::uint32_t* cidx;
     std::uint8_t* TOUCHING;
@@ -878,7 +879,7 @@ class HybridEngine final : public edm::EdmCore<D, CalendarQueue, HybridEngine<D>
     bool approached(double un) const { return rest.approached(un); }
     void wake(std::uint32_t k) { LOST[k] = 1; }
     [[gnu::always_inline]] void partner(std::uint32_t j, const Vec<D>& f, const Spin<D>& t) {
-      FF[j] += f;
+      FF[j] -= f;
       if constexpr (Rot) TQ[j] += t;
     }
     void virial(const Vec<D>& F, const Vec<D>& dx) { vir += F.dot(dx); }
@@ -886,28 +887,35 @@ class HybridEngine final : public edm::EdmCore<D, CalendarQueue, HybridEngine<D>
   };
 
   template <NormalLaw Law, bool Rot>
+  void soft_forces_law() {
+    any_periodic_ ? soft_forces_law<Law, Rot, true>() : soft_forces_law<Law, Rot, false>();
+  }
+  template <NormalLaw Law, bool Rot, bool Periodic>
   [[gnu::flatten]] void soft_forces_law() {
     const double h = h_;
     const bool onset_ok = wall_t_ > 0.0;
-    SoftPolicy<Rot> pol{ctab_.data(), pairs_.c.data(), touching_.data(), near_.data(), mode_.data(),
+    SoftPolicy<Rot, Periodic> pol{ctab_.data(), pairs_.c.data(), touching_.data(), near_.data(), mode_.data(),
                         fz_lost_.data(), f_.data(), tq_.data(), skin_, rest_, onset_ok, asleep_ > 0};
-    soft::pair_rows<D, Law, Rot>(soft::Records<D, Hot<D>>{hot_.data()}, soft::bodies_of(vh_, acc_, f_, wh_, alpha_, tq_),
-                                 pairs_.as_rows(shifts_.data()), 0,
-                                 static_cast<std::uint32_t>(pairs_.rows()), h, pol);
-    std::uint64_t begun = pol.begun;
+    const auto out = soft::pair_rows<D, Law, Rot>(soft::Records<D, Hot<D>>{hot_.data()},
+                                                  soft::bodies_of(vh_, acc_, f_, wh_, alpha_, tq_),
+                                                  pairs_.as_rows(shifts_.data()), 0,
+                                                  static_cast<std::uint32_t>(pairs_.rows()), h, pol);
+    std::uint64_t begun = out.begun;
     const Spin<D> no_spin = Spin<D>::Zero();
     Spin<D> tq_none = Spin<D>::Zero();
     for (auto& e : we_) {
       const int i = e.i;
       bool began = false;
-      const double delta = soft::wall_contact<D, Law, Rot>(
-          *shapes_[e.w], wall_t_, h, onset_ok, hot_[i].x, hot_[i].R, vh_[i], acc_[i], Rot ? wh_[i] : no_spin,
-          Rot ? alpha_[i] : no_spin, ctab_[e.c], e.touch, e.xi, began, f_[i], Rot ? tq_[i] : tq_none);
+      const double delta = soft::with_shape<D>(*shapes_[e.w], planes_[e.w], [&](const auto& shape) {
+        return soft::wall_contact<D, Law, Rot>(shape, wall_t_, h, onset_ok, hot_[i].x, hot_[i].R, vh_[i], acc_[i],
+                                               Rot ? wh_[i] : no_spin, Rot ? alpha_[i] : no_spin, ctab_[e.c], e.touch,
+                                               e.xi, began, f_[i], Rot ? tq_[i] : tq_none);
+      });
       begun += began;
       if (delta > 0.0) touching_[i] = 1;
     }
     hstats_soft_begun_ += begun;
-    virial_ += pol.vir * h;  // impulse times distance over the substep, as the hard collisions
+    virial_ += out.vir * h;  // impulse times distance over the substep, as the hard collisions
   }
 
   // Elastic energy stored in the soft contacts (engine/tdm/tdm.cpp sample()).
@@ -1257,6 +1265,7 @@ class HybridEngine final : public edm::EdmCore<D, CalendarQueue, HybridEngine<D>
   std::vector<PairEntry> pe_sleep_;  // touching pairs of two sleepers (frozen)
   std::array<Vec<D>, D == 3 ? 27 : 9> shifts_{};  // periodic image shifts by index (image_of)
   double wall_t_ = 0.0;             // the time of the soft forces being computed
+  std::vector<const PlaneWall<D>*> planes_;  // shapes_[w] where it is a plane (inlined), else null
   std::vector<WallEntry> we_, we_sleep_;
   bool sleeping_ = false;                 // rest rule on
   double rest_speed2_ = 0.0;

@@ -106,6 +106,7 @@ class TdmEngine {
   std::vector<std::uint8_t> wl_touch_;
   std::vector<Vec<D>> wl_xi_;
   std::vector<const WallShape<D>*> shapes_;  // sys_.walls[w].shape
+  std::vector<const PlaneWall<D>*> planes_;  // the same where it is a plane (inlined), else null
   double wall_t_ = 0.0;                      // the time of the forces being computed
 
   // Cell grid used by rebuild().
@@ -175,7 +176,10 @@ void TdmEngine<D>::setup() {
   half_skin2_ = 0.25 * skin_ * skin_;
   L_ = sys_.upper - sys_.lower;
   g_ = sys_.gravity;
-  for (const auto& w : sys_.walls) shapes_.push_back(w.shape.get());
+  for (const auto& w : sys_.walls) {
+    shapes_.push_back(w.shape.get());
+    planes_.push_back(as_plane<D>(w.shape.get()));
+  }
   rot_ = plan_.friction;
   law_ = plan_.law;
 
@@ -390,14 +394,36 @@ void TdmEngine<D>::rebuild() {
 template <int D>
 template <bool Rot, bool Uniform, NormalLaw Law, bool Fuse>
 struct TdmEngine<D>::RangePolicy {
-  static constexpr bool kSleepers = false, kNear = false, kVirial = false;
+  static constexpr bool kSleepers = false, kNear = false, kVirial = false, kShifts = true, kFlat = false;
   TdmEngine& eng;
   Acc& acc;
   std::vector<Spill<D>>& spill;
   const std::uint32_t lo, hi;
   std::uint32_t ew;  // wall entries are sorted by particle
   const std::uint32_t ew_end;
+  // Raw pointers and local copies of what the loop writes and the fused integration reads (the
+  // stores would otherwise make the compiler reload every vector's data pointer at each use).
+  Vec<D>* const FF;
+  Spin<D>* const TQ;
+  const std::uint32_t* const WLI;
+  const std::uint8_t* const BND;
+  Vec<D>* const AC;
+  Vec<D>* const V;
+  Vec<D>* const X;
+  const Vec<D>* const X0;
+  const double* const MINV;
+  Spin<D>* const W;
+  Spin<D>* const AL;
+  const double* const IINV;
+  const Vec<D> g;
+  const double dt, lim2;
   bool moved = false;
+
+  RangePolicy(TdmEngine& e, int t)
+      : eng(e), acc(e.acc_t_[t]), spill(e.spill_[t]), lo(e.lo_[t]), hi(e.hi_[t]), ew(e.wlo_[t]), ew_end(e.whi_[t]),
+        FF(e.f_.data()), TQ(e.tq_.data()), WLI(e.wl_i_.data()), BND(e.boundary_.data()), AC(e.acc_.data()),
+        V(e.v_.data()), X(e.x_.data()), X0(e.x0_.data()), MINV(e.minv_.data()), W(e.w_.data()),
+        AL(e.alpha_.data()), IINV(e.iinv_.data()), g(e.g_), dt(e.dt_), lim2(e.half_skin2_) {}
 
   bool onset() const { return !eng.initial_; }
   const SoftContact& contact(std::uint32_t, std::uint32_t i, std::uint32_t j, SoftContact& scratch) const {
@@ -420,19 +446,23 @@ struct TdmEngine<D>::RangePolicy {
   void wake(std::uint32_t) {}
   [[gnu::always_inline]] void partner(std::uint32_t j, const Vec<D>& f, const Spin<D>& t) {
     if (j >= lo && j < hi) {
-      eng.f_[j] += f;
-      if constexpr (Rot) eng.tq_[j] += t;
+      FF[j] -= f;
+      if constexpr (Rot) TQ[j] += t;
     } else {
-      spill.push_back({j, f, t});
+      spill.push_back({j, -f, t});
     }
   }
   void virial(const Vec<D>&, const Vec<D>&) {}
   [[gnu::always_inline]] void row_done(std::uint32_t i) {
-    for (; ew < ew_end && eng.wl_i_[ew] == i; ++ew) eng.wall_contact_force<Rot, Uniform, Law>(ew, acc);
+    for (; ew < ew_end && WLI[ew] == i; ++ew) eng.wall_contact_force<Rot, Uniform, Law>(ew, acc);
     // Every pair entry has j > i (storage is sorted by cell), so i's force is complete here unless
-    // a lower thread range still adds to it: integrate it now and never read it again this step.
+    // a lower thread range still adds to it: integrate it now and never read it again this step
+    // (integrate_one, with the local copies).
     if constexpr (Fuse) {
-      if (!eng.boundary_[i]) moved |= eng.integrate_one(i);
+      if (!BND[i]) {
+        moved |= soft::kick_drift<D>(FF[i], AC[i], V[i], X[i], X0[i], MINV[i], g, dt, lim2);
+        if constexpr (Rot) soft::kick_spin(TQ[i], AL[i], W[i], IINV[i], dt);
+      }
     }
   }
 };
@@ -442,13 +472,13 @@ struct TdmEngine<D>::RangePolicy {
 template <int D>
 template <bool Rot, bool Uniform, NormalLaw Law, bool Fuse>
 [[gnu::flatten]] void TdmEngine<D>::pair_range(int t) {
-  Acc& acc = acc_t_[t];
-  RangePolicy<Rot, Uniform, Law, Fuse> pol{*this, acc, spill_[t], lo_[t], hi_[t], wlo_[t], whi_[t]};
+  const RangePolicy<Rot, Uniform, Law, Fuse> pol(*this, t);
   const auto rows = soft::PairRows<D>::of(nullptr, off_.data(), nb_.data(), sh_.data(), touch_.data(), xi_.data(),
                                           shifts_.data());
-  soft::pair_rows<D, Law, Rot>(soft::Arrays<D>{x_.data(), R_.data()}, soft::bodies_of(v_, acc_, f_, w_, alpha_, tq_),
-                               rows, lo_[t], hi_[t], dt_, pol);
-  acc.moved = pol.moved;
+  const auto out = soft::pair_rows<D, Law, Rot>(soft::Arrays<D>{x_.data(), R_.data()},
+                                                soft::bodies_of(v_, acc_, f_, w_, alpha_, tq_), rows, lo_[t], hi_[t],
+                                                dt_, pol);
+  acc_t_[t].moved = out.moved;
 }
 
 template <int D>
@@ -458,9 +488,11 @@ inline void TdmEngine<D>::wall_contact_force(std::uint32_t e, Acc& acc) {
   const int w = static_cast<int>(wl_w_[e]);
   bool began = false;
   Vec<D> no_spring = Vec<D>::Zero();
-  const double delta = soft::wall_contact<D, Law, Rot>(
-      *shapes_[w], wall_t_, dt_, !initial_, x_[i], R_[i], v_[i], acc_[i], w_[i], alpha_[i],
-      Uniform ? cwall_[w] : wall_coeffs(w, i), wl_touch_[e], Rot ? wl_xi_[e] : no_spring, began, f_[i], tq_[i]);
+  const double delta = soft::with_shape<D>(*shapes_[w], planes_[w], [&](const auto& shape) {
+    return soft::wall_contact<D, Law, Rot>(shape, wall_t_, dt_, !initial_, x_[i], R_[i], v_[i], acc_[i], w_[i],
+                                           alpha_[i], Uniform ? cwall_[w] : wall_coeffs(w, i), wl_touch_[e],
+                                           Rot ? wl_xi_[e] : no_spring, began, f_[i], tq_[i]);
+  });
   if (began) ++acc.new_wall;
   if (delta > acc.max_rel * R_[i]) acc.max_rel = delta / R_[i];
   if (delta > acc.max_abs) acc.max_abs = delta;

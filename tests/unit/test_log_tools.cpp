@@ -451,6 +451,15 @@ TEST(LogVerify, PassesOnTheLogOfEveryShippedCase) {
   // A scene that does not match the log is bad input.
   const Result mismatch = sh("log verify " + tclog + " --scene " + kCases + "disks_in_a_box.toml");
   EXPECT_EQ(mismatch.code, 2) << mismatch.out;
+  // A wall record is checked against the wall's shape: with the floor tilted in the scene, the
+  // first floor bounce has a normal the plane does not have anywhere.
+  const matep::Scene tilted =
+      matep::load_scene(kCases + "bouncing_ball.toml", {"run.tc=0.001", "wall.floor.normal=[0.1, 0.0, 1.0]"});
+  const matep::VerifyResult r = matep::verify_log(tclog, &tilted, 1e-9);
+  EXPECT_FALSE(r.ok);
+  EXPECT_EQ(r.check, "wall normal") << r.message;
+  EXPECT_EQ(r.index, 0u) << r.message;
+  EXPECT_NE(r.message.find("plane through"), std::string::npos) << r.message;
   fs::remove_all(d);
 }
 

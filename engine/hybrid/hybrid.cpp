@@ -845,7 +845,8 @@ class HybridEngine final : public edm::EdmCore<D, CalendarQueue, HybridEngine<D>
   // virial of the contact forces adds to the hard collisions'.
   template <bool Rot, bool Periodic>
   struct SoftPolicy {
-    static constexpr bool kSleepers = true, kNear = true, kVirial = true, kShifts = Periodic, kFlat = true;
+    static constexpr bool kSleepers = true, kNear = true, kVirial = true, kOwners = true, kShifts = Periodic,
+                          kSparseRows = true;
     const SoftContact* C;
     const std::uint32_t* cidx;
     std::uint8_t* TOUCHING;
@@ -896,11 +897,9 @@ class HybridEngine final : public edm::EdmCore<D, CalendarQueue, HybridEngine<D>
     const bool onset_ok = wall_t_ > 0.0;
     SoftPolicy<Rot, Periodic> pol{ctab_.data(), pairs_.c.data(), touching_.data(), near_.data(), mode_.data(),
                         fz_lost_.data(), f_.data(), tq_.data(), skin_, rest_, onset_ok, asleep_ > 0};
-    const auto out = soft::pair_rows<D, Law, Rot>(soft::Records<D, Hot<D>>{hot_.data()},
-                                                  soft::bodies_of(vh_, acc_, f_, wh_, alpha_, tq_),
-                                                  pairs_.as_rows(shifts_.data()), 0,
-                                                  static_cast<std::uint32_t>(pairs_.rows()), h, pol);
-    std::uint64_t begun = out.begun;
+    soft::pair_rows<D, Law, Rot>(soft::Records<D, Hot<D>>{hot_.data()}, soft::bodies_of(vh_, acc_, f_, wh_, alpha_, tq_),
+                                 pairs_.as_rows(shifts_.data()), 0, static_cast<std::uint32_t>(pairs_.rows()), h, pol);
+    std::uint64_t begun = pol.begun;
     const Spin<D> no_spin = Spin<D>::Zero();
     Spin<D> tq_none = Spin<D>::Zero();
     for (auto& e : we_) {
@@ -915,7 +914,7 @@ class HybridEngine final : public edm::EdmCore<D, CalendarQueue, HybridEngine<D>
       if (delta > 0.0) touching_[i] = 1;
     }
     hstats_soft_begun_ += begun;
-    virial_ += out.vir * h;  // impulse times distance over the substep, as the hard collisions
+    virial_ += pol.vir * h;  // impulse times distance over the substep, as the hard collisions
   }
 
   // Elastic energy stored in the soft contacts (engine/tdm/tdm.cpp sample()).

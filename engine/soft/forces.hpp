@@ -60,12 +60,12 @@ struct Records {
   double radius(std::uint32_t i) const { return p[i].R; }
 };
 
-// A half neighbour list in rows: row r holds entries off[r] .. off[r + 1] of particle r, or (a flat
-// list) entry e belongs to particle entry_owner[e]; an entry is the partner j, the index of the
+// A half neighbour list in rows: row r holds entries off[r] .. off[r + 1] of the particle
+// owner[r] (owner null: row r is particle r); an entry is the partner j, the index of the
 // periodic image shift to add to x_i - x_j, the touching flag and (with rotation) the spring.
 template <int D>
 struct PairRows {
-  const std::uint32_t* entry_owner = nullptr;
+  const std::uint32_t* owner = nullptr;
   const std::uint32_t* off = nullptr;
   const std::uint32_t* nb = nullptr;
   const std::uint8_t* sh = nullptr;
@@ -73,14 +73,14 @@ struct PairRows {
   Vec<D>* xi = nullptr;
   const Vec<D>* shift = nullptr;  // image shifts by index
 
-  // Rows 0 .. n - 1 of particles 0 .. n - 1 (entry_owner null), or a flat list, as CSR arrays.
-  static PairRows of(const std::uint32_t* entry_owner, const std::uint32_t* off, const std::uint32_t* nb,
+  // Rows 0 .. n - 1 of particles 0 .. n - 1 (owner null) or of owner[r], as CSR arrays.
+  static PairRows of(const std::uint32_t* owner, const std::uint32_t* off, const std::uint32_t* nb,
                      const std::uint8_t* sh, std::uint8_t* touch, Vec<D>* xi, const Vec<D>* shift) {
-    return {entry_owner, off, nb, sh, touch, xi, shift};
+    return {owner, off, nb, sh, touch, xi, shift};
   }
 };
 
-// Pair forces of rows [r0, r1); returns the policy with its counters. The policy provides (see the
+// Pair forces of rows [r0, r1); the policy keeps the counters. The policy provides (see the
 // engines for the two):
 //   static constexpr bool kSleepers, kNear, kVirial;
 //   bool onset() const;                       // may a contact begun now get its onset weight?
@@ -89,15 +89,13 @@ struct PairRows {
 //   void touching(i, j);  void near(i, j);  double near_skin() const;
 //   bool any_asleep() const;  bool asleep(i) const;  bool approached(un) const;  void wake(k);
 //   void partner(j, F, tj);   (j receives -F and the torque tj)
-//   void virial(F, dx);  void row_done(i) (TDM: after each row);
-//   static constexpr bool kShifts (some axis is periodic: add the entries' image shifts), kFlat
-//   (the entries are visited in order, each with its owner, PairRows::entry_owner, and the owner's
-//   force is added per contact; otherwise row r is particle r).
+//   void virial(F, dx);  void row_done(i);
+//   static constexpr bool kOwners (row r is particle owner[r]; otherwise particle r), kShifts (some
+//   axis is periodic: add the entries' image shifts), kSparseRows (short rows: the owner's force is
+//   added per contact instead of once per row).
 template <int D, NormalLaw Law, bool Rot, class Pos, class Policy>
-[[gnu::always_inline]] inline Policy pair_rows(const Pos P, const Bodies<D>& b, const PairRows<D>& L, std::uint32_t r0,
-                                               std::uint32_t r1, double h, Policy pol) {
-  // The policy is taken and returned by value: a local whose pointers stay in registers (the
-  // loop's byte stores, the touching flags, could otherwise alias a caller's copy).
+[[gnu::always_inline]] inline void pair_rows(const Pos P, const Bodies<D>& b, const PairRows<D>& L, std::uint32_t r0,
+                                             std::uint32_t r1, double h, Policy& pol) {
   const double hdt = 0.5 * h;
   const Vec<D>* const V = b.v;
   const Vec<D>* const AC = b.acc;
@@ -107,145 +105,130 @@ template <int D, NormalLaw Law, bool Rot, class Pos, class Policy>
   const std::uint8_t* const SH = L.sh;
   std::uint8_t* const TOUCH = L.touch;
   const Vec<D>* const SHIFT = L.shift;
+  const std::uint32_t* const OWNER = L.owner;
   Vec<D>* const XI = L.xi;
   const Spin<D>* const WH = b.w;
   const Spin<D>* const AL = b.alpha;
   Spin<D>* const TQ = b.tq;
   const bool onset_ok = pol.onset();
-  // One entry e of owner i (at xi, radius Ri); the owner's force and torque go to fi, ti (summed
-  // over a row and added once: TDM's long rows) or straight to FF, TQ (flat lists: the hybrid's).
-  auto visit = [&](const std::uint32_t i, const Vec<D>& xi, const double Ri, const std::uint32_t e, Vec<D>& fi,
-                   Spin<D>& ti) __attribute__((always_inline)) {
-    auto own_force = [&](const Vec<D>& f) {
-      if constexpr (Policy::kFlat) FF[i] += f;
-      else fi += f;
-    };
-    auto own_torque = [&](const Spin<D>& m) {  // adds -m
-      if constexpr (Policy::kFlat) TQ[i] -= m;
-      else ti -= m;
-    };
-    const std::uint32_t j = NB[e];
-    Vec<D> dx = xi - P.pos(j);
-    if constexpr (Policy::kShifts) dx += SHIFT[SH[e]];  // no periodic axis: the shift is zero
-    const double Rs = Ri + P.radius(j);
-    const double r2 = dx.squaredNorm();
-    if constexpr (Policy::kNear) {
-      const double cut = Rs + pol.near_skin();
-      if (r2 < cut * cut) pol.near(i, j);
-    }
-    if (r2 >= Rs * Rs) {
-      if (TOUCH[e]) {
-        TOUCH[e] = 0;
-        if constexpr (Rot) XI[e].setZero();
-        pol.opened(i, j);
+  for (std::uint32_t r = r0; r < r1; ++r) {
+    std::uint32_t i = r;
+    if constexpr (Policy::kOwners) i = OWNER[r];
+    const Vec<D> xi = P.pos(i);
+    const double Ri = P.radius(i);
+    // i's half-step and predicted velocities are read where a contact needs them (most entries
+    // of a dilute gas are not in contact).
+    Vec<D> fi = Vec<D>::Zero();
+    Spin<D> ti = Spin<D>::Zero();
+    // The owner's force and torque (fi, ti) are summed over the row and added once (TDM's long
+    // rows), or added per contact (kSparseRows: the hybrid's short rows).
+    Vec<D>& own_f = Policy::kSparseRows ? FF[i] : fi;
+    Spin<D>& own_t = Policy::kSparseRows && Rot ? TQ[i] : ti;  // TQ is only there with rotation
+    const std::uint32_t end = OFF[r + 1];
+    for (std::uint32_t e = OFF[r]; e < end; ++e) {
+      const std::uint32_t j = NB[e];
+      Vec<D> dx = xi - P.pos(j);
+      if constexpr (Policy::kShifts) dx += SHIFT[SH[e]];  // no periodic axis: the shift is zero
+      const double Rs = Ri + P.radius(j);
+      const double r2 = dx.squaredNorm();
+      if constexpr (Policy::kNear) {
+        const double cut = Rs + pol.near_skin();
+        if (r2 < cut * cut) pol.near(i, j);
       }
-      return;
-    }
-    const double rr = std::sqrt(r2);
-    const Vec<D> n = dx * (1.0 / rr);
-    const double delta = Rs - rr;
-    const Vec<D> vhi = V[i], vpi = V[i] + hdt * AC[i];
-    double onset = -1.0;  // first step of this contact: the part of the step spent in contact
-    if (!TOUCH[e]) {
-      TOUCH[e] = 1;
-      pol.began();
-      if (onset_ok) onset = onset_fraction(delta, -(vhi - V[j]).dot(n), h);
-    }
-    pol.overlap(delta, Rs);
-    pol.touching(i, j);
-    // The contact's constants: the policy's (a table entry, or computed into `local`), or
-    // their first-step weighted copy.
-    SoftContact local;
-    const SoftContact* cp = &pol.contact(e, i, j, local);
-    if (onset >= 0.0) {
-      if (cp != &local) local = *cp;
-      at_onset<Law>(local, onset);
-      cp = &local;
-    }
-    const SoftContact& c = *cp;
-    // Predicted velocities at the new time: v(t + h/2) + h/2 a(t).
-    const Vec<D> vj = V[j] + hdt * AC[j];
-    // A sleeping end (rest rule) is pushed by the springs only; a touching grain that
-    // approaches it faster than rest_speed wakes it.
-    bool sleep_i = false, sleep_j = false;
-    if constexpr (Policy::kSleepers) {
-      if (pol.any_asleep()) {
-        sleep_i = pol.asleep(i);
-        sleep_j = pol.asleep(j);
-        if (sleep_i || sleep_j) {
-          const double un = (vhi - V[j]).dot(n);  // < 0: approaching (n points from j to i)
-          if (pol.approached(un)) pol.wake(sleep_i ? i : j);
+      if (r2 >= Rs * Rs) {
+        if (TOUCH[e]) {
+          TOUCH[e] = 0;
+          if constexpr (Rot) XI[e].setZero();
+          pol.opened(i, j);
+        }
+        continue;
+      }
+      const double rr = std::sqrt(r2);
+      const Vec<D> n = dx * (1.0 / rr);
+      const double delta = Rs - rr;
+      const Vec<D> vhi = V[i], vpi = V[i] + hdt * AC[i];
+      double onset = -1.0;  // first step of this contact: the part of the step spent in contact
+      if (!TOUCH[e]) {
+        TOUCH[e] = 1;
+        pol.began();
+        if (onset_ok) onset = onset_fraction(delta, -(vhi - V[j]).dot(n), h);
+      }
+      pol.overlap(delta, Rs);
+      pol.touching(i, j);
+      // The contact's constants: the policy's (a table entry, or computed into `local`), or
+      // their first-step weighted copy.
+      SoftContact local;
+      const SoftContact* cp = &pol.contact(e, i, j, local);
+      if (onset >= 0.0) {
+        if (cp != &local) local = *cp;
+        at_onset<Law>(local, onset);
+        cp = &local;
+      }
+      const SoftContact& c = *cp;
+      // Predicted velocities at the new time: v(t + h/2) + h/2 a(t).
+      const Vec<D> vj = V[j] + hdt * AC[j];
+      // A sleeping end (rest rule) is pushed by the springs only; a touching grain that
+      // approaches it faster than rest_speed wakes it.
+      bool sleep_i = false, sleep_j = false;
+      if constexpr (Policy::kSleepers) {
+        if (pol.any_asleep()) {
+          sleep_i = pol.asleep(i);
+          sleep_j = pol.asleep(j);
+          if (sleep_i || sleep_j) {
+            const double un = (vhi - V[j]).dot(n);  // < 0: approaching (n points from j to i)
+            if (pol.approached(un)) pol.wake(sleep_i ? i : j);
+          }
         }
       }
-    }
-    Vec<D> F, Fel;
-    Spin<D> tj = Spin<D>::Zero();
-    if constexpr (!Rot) {
-      double fn = normal_force_law<Law>(c, delta, (vpi - vj).dot(n));
-      if (c.clip && fn < 0.0) fn = 0.0;
-      F = fn * n;
-      if (sleep_i || sleep_j) Fel = elastic_normal_force<Law>(c, delta) * n;
-    } else {
-      const double li = pair_lever_arm(Ri, delta), lj = pair_lever_arm(P.radius(j), delta);
-      ContactKinematics<D> k;
-      k.delta = delta;
-      k.n = n;
-      const Spin<D> whi = WH[i], wpi = WH[i] + hdt * AL[i];
-      k.v = contact_velocity<D>(vpi, wpi, li, vj, WH[j] + hdt * AL[j], lj, n);
-      k.dxi = h * contact_velocity<D>(vhi, whi, li, V[j], WH[j], lj, n);
-      if (onset >= 0.0) k.dxi *= onset;  // the spring stretches only since first touch
-      ContactHistory<D> hist{XI[e]};
-      const ContactForce<D> cf = soft_contact_force_law<D, Law>(c, k, hist);
-      XI[e] = hist.xi;
-      F = cf.force;
-      // tau = -l n x F_t on both bodies (contact/soft.hpp conventions).
-      const Spin<D> m = lever_moment<D>(n, cf.tangential);
-      if (sleep_i || sleep_j) {
-        const double kt = Law == NormalLaw::Linear ? c.kt : c.kt * std::sqrt(delta);
-        const Vec<D> ft = -kt * XI[e];
-        Fel = elastic_normal_force<Law>(c, delta) * n + ft;
-        const Spin<D> mel = lever_moment<D>(n, ft);
-        own_torque(li * (sleep_i ? mel : m));
-        tj = -lj * (sleep_j ? mel : m);
+      Vec<D> F, Fel;
+      Spin<D> tj = Spin<D>::Zero();
+      if constexpr (!Rot) {
+        double fn = normal_force_law<Law>(c, delta, (vpi - vj).dot(n));
+        if (c.clip && fn < 0.0) fn = 0.0;
+        F = fn * n;
+        if (sleep_i || sleep_j) Fel = elastic_normal_force<Law>(c, delta) * n;
       } else {
-        own_torque(li * m);
-        tj = -lj * m;
+        const double li = pair_lever_arm(Ri, delta), lj = pair_lever_arm(P.radius(j), delta);
+        ContactKinematics<D> k;
+        k.delta = delta;
+        k.n = n;
+        const Spin<D> whi = WH[i], wpi = WH[i] + hdt * AL[i];
+        k.v = contact_velocity<D>(vpi, wpi, li, vj, WH[j] + hdt * AL[j], lj, n);
+        k.dxi = h * contact_velocity<D>(vhi, whi, li, V[j], WH[j], lj, n);
+        if (onset >= 0.0) k.dxi *= onset;  // the spring stretches only since first touch
+        ContactHistory<D> hist{XI[e]};
+        const ContactForce<D> cf = soft_contact_force_law<D, Law>(c, k, hist);
+        XI[e] = hist.xi;
+        F = cf.force;
+        // tau = -l n x F_t on both bodies (contact/soft.hpp conventions).
+        const Spin<D> m = lever_moment<D>(n, cf.tangential);
+        if (sleep_i || sleep_j) {
+          const double kt = Law == NormalLaw::Linear ? c.kt : c.kt * std::sqrt(delta);
+          const Vec<D> ft = -kt * XI[e];
+          Fel = elastic_normal_force<Law>(c, delta) * n + ft;
+          const Spin<D> mel = lever_moment<D>(n, ft);
+          own_t -= li * (sleep_i ? mel : m);
+          tj = -lj * (sleep_j ? mel : m);
+        } else {
+          own_t -= li * m;
+          tj = -lj * m;
+        }
       }
+      if constexpr (Policy::kSleepers) {
+        own_f += sleep_i ? Fel : F;
+        pol.partner(j, sleep_j ? Fel : F, tj);
+      } else {
+        own_f += F;
+        pol.partner(j, F, tj);
+      }
+      if constexpr (Policy::kVirial) pol.virial(F, dx);
     }
-    if constexpr (Policy::kSleepers) {
-      own_force(sleep_i ? Fel : F);
-      pol.partner(j, sleep_j ? Fel : F, tj);
-    } else {
-      own_force(F);
-      pol.partner(j, F, tj);
-    }
-    if constexpr (Policy::kVirial) pol.virial(F, dx);
-  };
-  if constexpr (Policy::kFlat) {
-    // Entries in order, each naming its owner (short rows would cost a loop exit each).
-    const std::uint32_t* const EOWN = L.entry_owner;
-    Vec<D> fi;
-    Spin<D> ti;
-    for (std::uint32_t e = OFF[r0], end = OFF[r1]; e < end; ++e) {
-      const std::uint32_t i = EOWN[e];
-      visit(i, P.pos(i), P.radius(i), e, fi, ti);
-    }
-  } else {
-    for (std::uint32_t r = r0; r < r1; ++r) {
-      const std::uint32_t i = r;
-      const Vec<D> xi = P.pos(i);
-      const double Ri = P.radius(i);
-      // i's half-step and predicted velocities are read where a contact needs them (most entries
-      // of a dilute gas are not in contact).
-      Vec<D> fi = Vec<D>::Zero();
-      Spin<D> ti = Spin<D>::Zero();
-      for (std::uint32_t e = OFF[r], end = OFF[r + 1]; e < end; ++e) visit(i, xi, Ri, e, fi, ti);
+    if constexpr (!Policy::kSparseRows) {
       FF[i] += fi;
       if constexpr (Rot) TQ[i] += ti;
-      pol.row_done(i);
     }
+    pol.row_done(i);
   }
-  return pol;
 }
 
 // One wall contact of particle i at time t (the walls' state: contact/wall.hpp): adds its force and

@@ -3,8 +3,7 @@
 // Row r holds the entries off[r] .. off[r + 1] of particle owner[r]; an entry is the partner, the
 // index of the periodic image shift (x_owner - x_partner + shift is their separation), the index of
 // the contact constants, the touching flag and the tangential spring oriented for the owner.
-// as_rows() hands it to the soft path's loop (engine/soft/forces.hpp) as a flat list (each entry
-// names its owner: the rows are short).
+// as_rows() hands it to the soft path's loop (engine/soft/forces.hpp).
 #pragma once
 
 #include <cstdint>
@@ -27,7 +26,7 @@ struct PairEntry {
 template <int D>
 class PairList {
  public:
-  std::vector<std::uint32_t> owner, off{0}, nb, c, own;  // own[e]: the owner of entry e
+  std::vector<std::uint32_t> owner, off{0}, nb, c;
   std::vector<std::uint8_t> sh, touch;
   std::vector<Vec<D>> xi;
 
@@ -36,7 +35,6 @@ class PairList {
     off.assign(1, 0);
     nb.clear();
     c.clear();
-    own.clear();
     sh.clear();
     touch.clear();
     xi.clear();
@@ -47,7 +45,6 @@ class PairList {
   // Entries are added to the open row of `i` (a row with no entries is dropped by end_row).
   void begin_row(std::uint32_t i) { open_ = i; }
   void add(const PairEntry<D>& e) {
-    own.push_back(open_);
     nb.push_back(e.j);
     c.push_back(e.c);
     sh.push_back(e.sh);
@@ -85,7 +82,6 @@ class PairList {
       for (std::size_t e = begin; e < end; ++e) {
         if (!keep(entry(r, e))) continue;
         nb[w] = nb[e];
-        own[w] = own[e];
         c[w] = c[e];
         sh[w] = sh[e];
         touch[w] = touch[e];
@@ -102,7 +98,6 @@ class PairList {
     owner.resize(rw);
     off.resize(rw + 1);
     nb.resize(w);
-    own.resize(w);
     c.resize(w);
     sh.resize(w);
     touch.resize(w);
@@ -110,7 +105,7 @@ class PairList {
   }
 
   PairRows<D> as_rows(const Vec<D>* shifts) {
-    return PairRows<D>::of(own.data(), off.data(), nb.data(), sh.data(), touch.data(), xi.data(), shifts);
+    return PairRows<D>::of(owner.data(), off.data(), nb.data(), sh.data(), touch.data(), xi.data(), shifts);
   }
 
  private:

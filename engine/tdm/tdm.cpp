@@ -394,7 +394,8 @@ void TdmEngine<D>::rebuild() {
 template <int D>
 template <bool Rot, bool Uniform, NormalLaw Law, bool Fuse>
 struct TdmEngine<D>::RangePolicy {
-  static constexpr bool kSleepers = false, kNear = false, kVirial = false, kShifts = true, kFlat = false;
+  static constexpr bool kSleepers = false, kNear = false, kVirial = false, kOwners = false, kShifts = true,
+                        kSparseRows = false;
   TdmEngine& eng;
   Acc& acc;
   std::vector<Spill<D>>& spill;
@@ -472,13 +473,12 @@ struct TdmEngine<D>::RangePolicy {
 template <int D>
 template <bool Rot, bool Uniform, NormalLaw Law, bool Fuse>
 [[gnu::flatten]] void TdmEngine<D>::pair_range(int t) {
-  const RangePolicy<Rot, Uniform, Law, Fuse> pol(*this, t);
+  RangePolicy<Rot, Uniform, Law, Fuse> pol(*this, t);
   const auto rows = soft::PairRows<D>::of(nullptr, off_.data(), nb_.data(), sh_.data(), touch_.data(), xi_.data(),
                                           shifts_.data());
-  const auto out = soft::pair_rows<D, Law, Rot>(soft::Arrays<D>{x_.data(), R_.data()},
-                                                soft::bodies_of(v_, acc_, f_, w_, alpha_, tq_), rows, lo_[t], hi_[t],
-                                                dt_, pol);
-  acc_t_[t].moved = out.moved;
+  soft::pair_rows<D, Law, Rot>(soft::Arrays<D>{x_.data(), R_.data()}, soft::bodies_of(v_, acc_, f_, w_, alpha_, tq_),
+                               rows, lo_[t], hi_[t], dt_, pol);
+  acc_t_[t].moved = pol.moved;
 }
 
 template <int D>

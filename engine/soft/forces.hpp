@@ -122,8 +122,6 @@ template <int D, NormalLaw Law, bool Rot, class Pos, class Policy>
     Spin<D> ti = Spin<D>::Zero();
     // The owner's force and torque (fi, ti) are summed over the row and added once (TDM's long
     // rows), or added per contact (kSparseRows: the hybrid's short rows).
-    Vec<D>& own_f = Policy::kSparseRows ? FF[i] : fi;
-    Spin<D>& own_t = Policy::kSparseRows && Rot ? TQ[i] : ti;  // TQ is only there with rotation
     const std::uint32_t end = OFF[r + 1];
     for (std::uint32_t e = OFF[r]; e < end; ++e) {
       const std::uint32_t j = NB[e];
@@ -207,18 +205,22 @@ template <int D, NormalLaw Law, bool Rot, class Pos, class Policy>
           const Vec<D> ft = -kt * XI[e];
           Fel = elastic_normal_force<Law>(c, delta) * n + ft;
           const Spin<D> mel = lever_moment<D>(n, ft);
-          own_t -= li * (sleep_i ? mel : m);
+          if constexpr (Policy::kSparseRows) TQ[i] -= li * (sleep_i ? mel : m);
+          else ti -= li * (sleep_i ? mel : m);
           tj = -lj * (sleep_j ? mel : m);
         } else {
-          own_t -= li * m;
+          if constexpr (Policy::kSparseRows) TQ[i] -= li * m;
+          else ti -= li * m;
           tj = -lj * m;
         }
       }
       if constexpr (Policy::kSleepers) {
-        own_f += sleep_i ? Fel : F;
+        if constexpr (Policy::kSparseRows) FF[i] += sleep_i ? Fel : F;
+        else fi += sleep_i ? Fel : F;
         pol.partner(j, sleep_j ? Fel : F, tj);
       } else {
-        own_f += F;
+        if constexpr (Policy::kSparseRows) FF[i] += F;
+        else fi += F;
         pol.partner(j, F, tj);
       }
       if constexpr (Policy::kVirial) pol.virial(F, dx);

@@ -463,12 +463,7 @@ System<3> sphere_on_vibrating_floor(double A, double f, double e, double gravity
   s.lower = V3(-0.05, -0.05, -0.05);
   s.upper = V3(0.05, 0.05, 0.5);
   s.gravity = V3(0.0, 0.0, -gravity);
-  Material m;
-  m.name = "ball";
-  m.density = kSoftRho;
-  m.contact = "linear";
-  m.stiffness = kSoftK;
-  m.restitution = Restitution::constant(e);
+  const Material m = test::linear_material("ball", kSoftRho, kSoftK, e);
   Material plane = m;
   plane.name = "plane";
   s.materials = {m, plane};

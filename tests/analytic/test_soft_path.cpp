@@ -14,6 +14,7 @@
 #include "contact/soft.hpp"
 #include "engine/hybrid.hpp"
 #include "engine/tdm.hpp"
+#include "tests/support/systems.hpp"
 
 namespace matep {
 namespace {
@@ -24,13 +25,7 @@ System<3> pressed_pair() {
   System<3> s;
   s.lower = Vec<3>::Constant(-0.2);
   s.upper = Vec<3>::Constant(0.2);
-  Material m;
-  m.name = "glass";
-  m.density = kRho;
-  m.contact = "linear";
-  m.stiffness = kK;
-  m.restitution = Restitution::constant(kE);
-  s.materials = {m};
+  s.materials = {test::linear_material("glass", kRho, kK, kE)};
   const double x = kR - 0.5 * kDelta0;
   s.x = {Vec<3>(-x, 0.0, 0.0), Vec<3>(x, 0.0, 0.0)};
   s.v = {Vec<3>(0.5 * kU, 0.0, 0.0), Vec<3>(-0.5 * kU, 0.0, 0.0)};

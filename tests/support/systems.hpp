@@ -4,11 +4,23 @@
 #include <cmath>
 #include <numbers>
 #include <random>
+#include <string>
 
 #include "engine/edm.hpp"
 #include "engine/system.hpp"
 
 namespace matep::test {
+
+// A material with the linear spring-dashpot law: stiffness k [N/m], constant restitution e.
+inline Material linear_material(const std::string& name, double density, double k, double e) {
+  Material m;
+  m.name = name;
+  m.density = density;
+  m.contact = "linear";
+  m.stiffness = k;
+  m.restitution = Restitution::constant(e);
+  return m;
+}
 
 // A periodic box of n^D unit-diameter, unit-mass particles on a simple cubic / square lattice
 // at packing fraction phi, Maxwellian velocities rescaled to temperature T exactly and zero

@@ -17,6 +17,16 @@
 
 namespace matep {
 
+// A plane as the soft path sees it during one force evaluation at time t of a step h: its gap and
+// velocity at t and its velocity at t - h/2 (the only two times wall_contact asks about), computed
+// once per evaluation instead of once per contact. Valid only for that evaluation.
+template <int D>
+struct PlaneInstant {
+  Vec<D> p, n, u, uh;  // position and velocity at t, velocity at t - h/2
+  WallPoint<D> at(const Vec<D>& x, double R, double) const { return {(x - p).dot(n) - R, n, u}; }
+  Vec<D> surface_velocity(const Vec<D>&, double, double) const { return uh; }
+};
+
 template <int D>
 class PlaneWall final : public WallShape<D> {
  public:
@@ -41,6 +51,8 @@ class PlaneWall final : public WallShape<D> {
     const double w = angular_frequency();
     return (w * std::cos(w * t)) * amplitude;
   }
+  // The plane during a soft force evaluation at time t with half step hdt (PlaneInstant above).
+  PlaneInstant<D> instant(double t, double hdt) const { return {position(t), normal, velocity(t), velocity(t - hdt)}; }
 
   const char* kind() const override { return "plane"; }
   std::string describe() const override {

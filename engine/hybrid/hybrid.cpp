@@ -139,7 +139,7 @@ class HybridEngine final : public edm::EdmCore<D, CalendarQueue, HybridEngine<D>
   void ext_setup() { hybrid_setup(given_settings_, given_plan_); }
   double ext_cell_margin() const { return lskin_; }  // the cells hold every particle within the list skin
   void ext_cells_ready(double rmax) {
-    for (const WallShape<D>* w : shapes_) planes_.push_back(as_plane<D>(w));
+    walls_.assign(shapes_);
     sg_w_ = 2.0 * rmax + lskin_;
     for (int k = 0; k < D; ++k) any_periodic_ = any_periodic_ || sys_.periodic[k];
     hybrid_arrays();
@@ -811,6 +811,7 @@ class HybridEngine final : public edm::EdmCore<D, CalendarQueue, HybridEngine<D>
   // evaluation (t = 0: particles that start overlapping) began before the run: no onset weight.
   void soft_forces(double t) {
     wall_t_ = t;
+    walls_.refresh(t, 0.5 * h_);
     switch (plan_.law) {
       case NormalLaw::Linear:
         rot_ ? soft_forces_law<NormalLaw::Linear, true>() : soft_forces_law<NormalLaw::Linear, false>();
@@ -853,8 +854,6 @@ class HybridEngine final : public edm::EdmCore<D, CalendarQueue, HybridEngine<D>
     std::uint8_t* NEAR;
     const std::uint8_t* MODE;
     std::uint8_t* LOST;
-    Vec<D>* FF;
-    Spin<D>* TQ;
     double skin;
     RestRule rest;
     bool onset_ok, sleepers;
@@ -879,7 +878,7 @@ class HybridEngine final : public edm::EdmCore<D, CalendarQueue, HybridEngine<D>
     bool asleep(std::uint32_t i) const { return MODE[i] == kAsleep; }
     bool approached(double un) const { return rest.approached(un); }
     void wake(std::uint32_t k) { LOST[k] = 1; }
-    [[gnu::always_inline]] void partner(std::uint32_t j, const Vec<D>& f, const Spin<D>& t) {
+    [[gnu::always_inline]] void partner(Vec<D>* FF, Spin<D>* TQ, std::uint32_t j, const Vec<D>& f, const Spin<D>& t) {
       FF[j] -= f;
       if constexpr (Rot) TQ[j] += t;
     }
@@ -896,7 +895,7 @@ class HybridEngine final : public edm::EdmCore<D, CalendarQueue, HybridEngine<D>
     const double h = h_;
     const bool onset_ok = wall_t_ > 0.0;
     SoftPolicy<Rot, Periodic> pol{ctab_.data(), pairs_.c.data(), touching_.data(), near_.data(), mode_.data(),
-                        fz_lost_.data(), f_.data(), tq_.data(), skin_, rest_, onset_ok, asleep_ > 0};
+                        fz_lost_.data(), skin_, rest_, onset_ok, asleep_ > 0};
     soft::pair_rows<D, Law, Rot>(soft::Records<D, Hot<D>>{hot_.data()}, soft::bodies_of(vh_, acc_, f_, wh_, alpha_, tq_),
                                  pairs_.as_rows(shifts_.data()), 0, static_cast<std::uint32_t>(pairs_.rows()), h, pol);
     std::uint64_t begun = pol.begun;
@@ -905,7 +904,7 @@ class HybridEngine final : public edm::EdmCore<D, CalendarQueue, HybridEngine<D>
     for (auto& e : we_) {
       const int i = e.i;
       bool began = false;
-      const double delta = soft::with_shape<D>(*shapes_[e.w], planes_[e.w], [&](const auto& shape) {
+      const double delta = walls_.with_wall(e.w, [&](const auto& shape) {
         return soft::wall_contact<D, Law, Rot>(shape, wall_t_, h, onset_ok, hot_[i].x, hot_[i].R, vh_[i], acc_[i],
                                                Rot ? wh_[i] : no_spin, Rot ? alpha_[i] : no_spin, ctab_[e.c], e.touch,
                                                e.xi, began, f_[i], Rot ? tq_[i] : tq_none);
@@ -1264,7 +1263,7 @@ class HybridEngine final : public edm::EdmCore<D, CalendarQueue, HybridEngine<D>
   std::vector<PairEntry> pe_sleep_;  // touching pairs of two sleepers (frozen)
   std::array<Vec<D>, D == 3 ? 27 : 9> shifts_{};  // periodic image shifts by index (image_of)
   double wall_t_ = 0.0;             // the time of the soft forces being computed
-  std::vector<const PlaneWall<D>*> planes_;  // shapes_[w] where it is a plane (inlined), else null
+  soft::WallsNow<D> walls_;  // shapes_, planes frozen at the soft forces' time
   std::vector<WallEntry> we_, we_sleep_;
   bool sleeping_ = false;                 // rest rule on
   double rest_speed2_ = 0.0;

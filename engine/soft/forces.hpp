@@ -88,7 +88,7 @@ struct PairRows {
 //   void began();  void opened(i, j);  void overlap(delta, Rs);
 //   void touching(i, j);  void near(i, j);  double near_skin() const;
 //   bool any_asleep() const;  bool asleep(i) const;  bool approached(un) const;  void wake(k);
-//   void partner(j, F, tj);   (j receives -F and the torque tj)
+//   void partner(f, tq, j, F, tj);   (j receives -F and the torque tj; f, tq: the Bodies' arrays)
 //   void virial(F, dx);  void row_done(i);
 //   static constexpr bool kOwners (row r is particle owner[r]; otherwise particle r), kShifts (some
 //   axis is periodic: add the entries' image shifts), kSparseRows (short rows: the owner's force is
@@ -217,11 +217,11 @@ template <int D, NormalLaw Law, bool Rot, class Pos, class Policy>
       if constexpr (Policy::kSleepers) {
         if constexpr (Policy::kSparseRows) FF[i] += sleep_i ? Fel : F;
         else fi += sleep_i ? Fel : F;
-        pol.partner(j, sleep_j ? Fel : F, tj);
+        pol.partner(FF, TQ, j, sleep_j ? Fel : F, tj);
       } else {
         if constexpr (Policy::kSparseRows) FF[i] += F;
         else fi += F;
-        pol.partner(j, F, tj);
+        pol.partner(FF, TQ, j, F, tj);
       }
       if constexpr (Policy::kVirial) pol.virial(F, dx);
     }
@@ -236,9 +236,9 @@ template <int D, NormalLaw Law, bool Rot, class Pos, class Policy>
 // One wall contact of particle i at time t (the walls' state: contact/wall.hpp): adds its force and
 // torque to f and tq, keeps the touching flag and the spring, and returns the overlap (<= 0: no
 // contact). `began` is set when the contact begins at this evaluation; `onset_ok` as in pair_rows.
-// Shape: WallShape<D> (any wall, through its virtual interface) or a final shape class such as
-// PlaneWall<D>, whose calls the compiler then inlines (the engines' fast path for planes; see
-// with_shape below).
+// Shape: WallShape<D> (any wall, through its virtual interface) or a class with the same at() and
+// surface_velocity(), such as PlaneInstant<D>, whose calls the compiler then inlines (the engines'
+// fast path for planes; see WallsNow below).
 template <int D, NormalLaw Law, bool Rot, class Shape = WallShape<D>>
 [[gnu::always_inline]] inline double wall_contact(const Shape& W, double t, double h, bool onset_ok,
                                                   const Vec<D>& x, double R, const Vec<D>& vh, const Vec<D>& acc,
@@ -288,11 +288,32 @@ template <int D, NormalLaw Law, bool Rot, class Shape = WallShape<D>>
   return delta;
 }
 
-// f(shape) with the wall's own final type where the engine knows it (a plane), else through the
-// interface: the physics is the same, the plane's calls are inlined.
-template <int D, class F>
-[[gnu::always_inline]] inline auto with_shape(const WallShape<D>& W, const PlaneWall<D>* plane, F&& f) {
-  return plane ? f(*plane) : f(W);
-}
+// The walls of one force evaluation: each plane frozen at the evaluation's times (PlaneInstant,
+// whose calls the compiler inlines), any other shape through its interface. refresh() before each
+// evaluation; with_wall(w, f) calls f with the one or the other: the physics is the same.
+template <int D>
+class WallsNow {
+ public:
+  void assign(const std::vector<const WallShape<D>*>& shapes) {
+    shapes_ = shapes;
+    planes_.clear();
+    for (const WallShape<D>* s : shapes_) planes_.push_back(as_plane<D>(s));
+    now_.assign(shapes_.size(), PlaneInstant<D>{});
+  }
+  void refresh(double t, double hdt) {
+    for (std::size_t w = 0; w < shapes_.size(); ++w)
+      if (planes_[w]) now_[w] = planes_[w]->instant(t, hdt);
+  }
+  template <class F>
+  [[gnu::always_inline]] auto with_wall(std::size_t w, F&& f) const {
+    return planes_[w] ? f(now_[w]) : f(*shapes_[w]);
+  }
+  std::size_t size() const { return shapes_.size(); }
+
+ private:
+  std::vector<const WallShape<D>*> shapes_;
+  std::vector<const PlaneWall<D>*> planes_;  // shapes_[w] where it is a plane, else null
+  std::vector<PlaneInstant<D>> now_;
+};
 
 }  // namespace matep::soft

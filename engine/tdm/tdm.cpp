@@ -106,8 +106,8 @@ class TdmEngine {
   std::vector<std::uint8_t> wl_touch_;
   std::vector<Vec<D>> wl_xi_;
   std::vector<const WallShape<D>*> shapes_;  // sys_.walls[w].shape
-  std::vector<const PlaneWall<D>*> planes_;  // the same where it is a plane (inlined), else null
-  double wall_t_ = 0.0;                      // the time of the forces being computed
+  soft::WallsNow<D> walls_;                  // the same, planes frozen at the step being computed
+  double wall_t_ = 0.0;      // the time of the forces being computed
 
   // Cell grid used by rebuild().
   CellGrid<D> grid_;
@@ -176,10 +176,8 @@ void TdmEngine<D>::setup() {
   half_skin2_ = 0.25 * skin_ * skin_;
   L_ = sys_.upper - sys_.lower;
   g_ = sys_.gravity;
-  for (const auto& w : sys_.walls) {
-    shapes_.push_back(w.shape.get());
-    planes_.push_back(as_plane<D>(w.shape.get()));
-  }
+  for (const auto& w : sys_.walls) shapes_.push_back(w.shape.get());
+  walls_.assign(shapes_);
   rot_ = plan_.friction;
   law_ = plan_.law;
 
@@ -402,29 +400,10 @@ struct TdmEngine<D>::RangePolicy {
   const std::uint32_t lo, hi;
   std::uint32_t ew;  // wall entries are sorted by particle
   const std::uint32_t ew_end;
-  // Raw pointers and local copies of what the loop writes and the fused integration reads (the
-  // stores would otherwise make the compiler reload every vector's data pointer at each use).
-  Vec<D>* const FF;
-  Spin<D>* const TQ;
-  const std::uint32_t* const WLI;
-  const std::uint8_t* const BND;
-  Vec<D>* const AC;
-  Vec<D>* const V;
-  Vec<D>* const X;
-  const Vec<D>* const X0;
-  const double* const MINV;
-  Spin<D>* const W;
-  Spin<D>* const AL;
-  const double* const IINV;
-  const Vec<D> g;
-  const double dt, lim2;
   bool moved = false;
 
   RangePolicy(TdmEngine& e, int t)
-      : eng(e), acc(e.acc_t_[t]), spill(e.spill_[t]), lo(e.lo_[t]), hi(e.hi_[t]), ew(e.wlo_[t]), ew_end(e.whi_[t]),
-        FF(e.f_.data()), TQ(e.tq_.data()), WLI(e.wl_i_.data()), BND(e.boundary_.data()), AC(e.acc_.data()),
-        V(e.v_.data()), X(e.x_.data()), X0(e.x0_.data()), MINV(e.minv_.data()), W(e.w_.data()),
-        AL(e.alpha_.data()), IINV(e.iinv_.data()), g(e.g_), dt(e.dt_), lim2(e.half_skin2_) {}
+      : eng(e), acc(e.acc_t_[t]), spill(e.spill_[t]), lo(e.lo_[t]), hi(e.hi_[t]), ew(e.wlo_[t]), ew_end(e.whi_[t]) {}
 
   bool onset() const { return !eng.initial_; }
   const SoftContact& contact(std::uint32_t, std::uint32_t i, std::uint32_t j, SoftContact& scratch) const {
@@ -445,7 +424,7 @@ struct TdmEngine<D>::RangePolicy {
   bool asleep(std::uint32_t) const { return false; }
   bool approached(double) const { return false; }
   void wake(std::uint32_t) {}
-  [[gnu::always_inline]] void partner(std::uint32_t j, const Vec<D>& f, const Spin<D>& t) {
+  [[gnu::always_inline]] void partner(Vec<D>* FF, Spin<D>* TQ, std::uint32_t j, const Vec<D>& f, const Spin<D>& t) {
     if (j >= lo && j < hi) {
       FF[j] -= f;
       if constexpr (Rot) TQ[j] += t;
@@ -455,14 +434,15 @@ struct TdmEngine<D>::RangePolicy {
   }
   void virial(const Vec<D>&, const Vec<D>&) {}
   [[gnu::always_inline]] void row_done(std::uint32_t i) {
-    for (; ew < ew_end && WLI[ew] == i; ++ew) eng.wall_contact_force<Rot, Uniform, Law>(ew, acc);
+    for (; ew < ew_end && eng.wl_i_[ew] == i; ++ew) eng.wall_contact_force<Rot, Uniform, Law>(ew, acc);
     // Every pair entry has j > i (storage is sorted by cell), so i's force is complete here unless
-    // a lower thread range still adds to it: integrate it now and never read it again this step
-    // (integrate_one, with the local copies).
+    // a lower thread range still adds to it: integrate it now and never read it again this step.
+    // (The engine's arrays are read here, once per row, rather than held through the row's loop.)
     if constexpr (Fuse) {
-      if (!BND[i]) {
-        moved |= soft::kick_drift<D>(FF[i], AC[i], V[i], X[i], X0[i], MINV[i], g, dt, lim2);
-        if constexpr (Rot) soft::kick_spin(TQ[i], AL[i], W[i], IINV[i], dt);
+      if (!eng.boundary_[i]) {
+        moved |= soft::kick_drift<D>(eng.f_[i], eng.acc_[i], eng.v_[i], eng.x_[i], eng.x0_[i], eng.minv_[i], eng.g_,
+                                     eng.dt_, eng.half_skin2_);
+        if constexpr (Rot) soft::kick_spin(eng.tq_[i], eng.alpha_[i], eng.w_[i], eng.iinv_[i], eng.dt_);
       }
     }
   }
@@ -488,7 +468,7 @@ inline void TdmEngine<D>::wall_contact_force(std::uint32_t e, Acc& acc) {
   const int w = static_cast<int>(wl_w_[e]);
   bool began = false;
   Vec<D> no_spring = Vec<D>::Zero();
-  const double delta = soft::with_shape<D>(*shapes_[w], planes_[w], [&](const auto& shape) {
+  const double delta = walls_.with_wall(w, [&](const auto& shape) {
     return soft::wall_contact<D, Law, Rot>(shape, wall_t_, dt_, !initial_, x_[i], R_[i], v_[i], acc_[i], w_[i],
                                            alpha_[i], Uniform ? cwall_[w] : wall_coeffs(w, i), wl_touch_[e],
                                            Rot ? wl_xi_[e] : no_spring, began, f_[i], tq_[i]);
@@ -520,6 +500,7 @@ void TdmEngine<D>::forces(bool fuse) {
   // Walls at this step: the forces of step n are evaluated at t_n = steps_ dt; a moving surface's
   // velocity is taken at t_n (with the predicted velocities) and t_n - h/2 (with the half-step ones).
   wall_t_ = static_cast<double>(steps_) * dt_;
+  walls_.refresh(wall_t_, hdt_);
   auto body = [&](int t) {
     switch (law_) {
       case NormalLaw::Linear:

@@ -25,6 +25,28 @@ struct WallPoint {
   Vec<D> velocity = Vec<D>::Zero();  // the surface's velocity at the contact point
 };
 
+// A rigid rotation of a wall about a fixed axis at a constant angular velocity omega (rad/s,
+// right-handed about `axis`): the surface point c moves at omega axis x (c - point). In 2D the axis
+// is the one out of the plane and `axis` is unused: the velocity is omega (-(c - point)_y, (c - point)_x).
+// A shape that is symmetric about the axis (a drum about its own axis, a disk about its normal)
+// keeps its geometry while its surface moves.
+template <int D>
+struct AxisRotation {
+  Vec<D> point = Vec<D>::Zero();
+  Vec<D> axis = Vec<D>::Zero();  // unit (3D)
+  double omega = 0.0;
+
+  bool active() const { return omega != 0.0; }
+  Vec<D> velocity(const Vec<D>& c) const {
+    const Vec<D> r = c - point;
+    if constexpr (D == 2) {
+      return Vec<D>(-omega * r[1], omega * r[0]);
+    } else {
+      return omega * axis.cross(r);
+    }
+  }
+};
+
 template <int D>
 class WallShape {
  public:
@@ -59,6 +81,14 @@ class WallShape {
   virtual double max_speed() const { return 0.0; }
   // Whether the surface moves at all (a moving wall keeps the grains touching it awake).
   virtual bool moving() const { return false; }
+
+  // The surface's axis-aligned bounding box (false: the shape is unbounded, an infinite plane or
+  // cylinder). The scene reader checks that a bounded shape fits in the domain.
+  virtual bool bounds(Vec<D>& lo, Vec<D>& hi) const {
+    (void)lo;
+    (void)hi;
+    return false;
+  }
 
   // Whether n is the wall's normal at some point of its surface (within tol): `matep log verify`
   // checks a wall record's normal with it (the records carry no positions).

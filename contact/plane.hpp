@@ -78,6 +78,7 @@ class PlaneWall final : public WallShape<D> {
   double max_speed() const override { return angular_frequency() * amplitude.norm(); }
   bool moving() const override { return oscillating(); }
   bool has_normal(const Vec<D>& n, double tol) const override { return (n - normal).norm() <= tol; }
+  Vec<D> anchor() const override { return point; }
 };
 
 // The plane shape of a wall, or null when the wall has another shape.

@@ -13,6 +13,8 @@
 #include <limits>
 #include <string>
 
+#include <Eigen/Geometry>
+
 #include "contact/vec.hpp"
 
 namespace matep {
@@ -81,6 +83,10 @@ class WallShape {
   virtual double max_speed() const { return 0.0; }
   // Whether the surface moves at all (a moving wall keeps the grains touching it awake).
   virtual bool moving() const { return false; }
+
+  // The point about which the wall's torque is reported (engine/wall_loads.hpp): a plane's point, a
+  // rotating shape's axis point.
+  virtual Vec<D> anchor() const { return Vec<D>::Zero(); }
 
   // The surface's axis-aligned bounding box (false: the shape is unbounded, an infinite plane or
   // cylinder). The scene reader checks that a bounded shape fits in the domain.

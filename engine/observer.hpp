@@ -44,6 +44,10 @@ struct ThermoSample {
   std::uint64_t collisions = 0;   // cumulative pair + wall collisions (soft: contacts begun)
   double pressure = 0.0;          // kinetic + collisional virial over the last interval
   std::uint64_t soft = 0;         // particles in the soft set (awake or asleep): EDM 0, TDM all
+  // Per wall, the mean force of the grains on it and its torque about the wall's anchor over the
+  // interval since the previous sample (engine/wall_loads.hpp): six numbers per wall, in wall order
+  // (empty at t = 0).
+  std::vector<double> wall_loads;
 };
 
 // The state of every particle at one time, in particle-id order (a snapshot).

@@ -214,11 +214,17 @@ template class EventLogWriter<3>;
 
 // ---- thermo.csv -------------------------------------------------------------------------------
 
-ThermoCsvWriter::ThermoCsvWriter(const std::string& path) : path_(path) {
+ThermoCsvWriter::ThermoCsvWriter(const std::string& path, const std::vector<std::string>& walls, int dim)
+    : path_(path), walls_(walls.size()), dim_(dim) {
   f_ = open_or_throw(path, "w");
   std::fputs("time,kinetic_energy,rotational_energy,potential_energy,temperature,collisions,pressure,elastic_energy,"
-             "soft\n",
+             "soft",
              f_);
+  for (const auto& w : walls) {
+    if (dim_ == 2) fmt::print(f_, ",{0}_fx,{0}_fy,{0}_tz", w);
+    else fmt::print(f_, ",{0}_fx,{0}_fy,{0}_fz,{0}_tx,{0}_ty,{0}_tz", w);
+  }
+  std::fputs("\n", f_);
 }
 
 ThermoCsvWriter::~ThermoCsvWriter() {
@@ -226,9 +232,18 @@ ThermoCsvWriter::~ThermoCsvWriter() {
 }
 
 void ThermoCsvWriter::on_sample(const ThermoSample& s) {
-  fmt::print(f_, "{:.17g},{:.17g},{:.17g},{:.17g},{:.17g},{},{:.17g},{:.17g},{}\n", s.time, s.kinetic_energy,
+  fmt::print(f_, "{:.17g},{:.17g},{:.17g},{:.17g},{:.17g},{},{:.17g},{:.17g},{}", s.time, s.kinetic_energy,
              s.rotational_energy, s.potential_energy, s.temperature, s.collisions, s.pressure,
              s.elastic_energy, s.soft);
+  // Six numbers per wall in the sample (2D: force x, y and torque z are the meaningful ones); none
+  // at t = 0 (no interval yet): zeros.
+  for (std::size_t w = 0; w < walls_; ++w) {
+    const bool have = s.wall_loads.size() >= 6 * (w + 1);
+    auto at = [&](int k) { return have ? s.wall_loads[6 * w + static_cast<std::size_t>(k)] : 0.0; };
+    if (dim_ == 2) fmt::print(f_, ",{:.17g},{:.17g},{:.17g}", at(0), at(1), at(5));
+    else fmt::print(f_, ",{:.17g},{:.17g},{:.17g},{:.17g},{:.17g},{:.17g}", at(0), at(1), at(2), at(3), at(4), at(5));
+  }
+  std::fputs("\n", f_);
   std::fflush(f_);  // a run that stops early keeps every row written so far
 }
 

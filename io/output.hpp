@@ -83,12 +83,17 @@ class EventLogWriter final : public Observer<D> {
 
 class ThermoCsvWriter final : public Observer<2>, public Observer<3> {
  public:
-  explicit ThermoCsvWriter(const std::string& path);
+  // With wall names, each row also gives every wall's mean force and torque over the interval
+  // (ThermoSample::wall_loads): columns NAME_fx, NAME_fy[, NAME_fz], then NAME_tz (2D) or NAME_tx,
+  // NAME_ty, NAME_tz (3D).
+  explicit ThermoCsvWriter(const std::string& path, const std::vector<std::string>& walls = {}, int dim = 3);
   ~ThermoCsvWriter() override;
   void on_sample(const ThermoSample& s) override;
 
  private:
   std::string path_;
+  std::size_t walls_ = 0;
+  int dim_ = 3;
   std::FILE* f_ = nullptr;
 };
 

@@ -135,7 +135,10 @@ RunOutcome run_system(const Scene& scene, const System<D>& sys, const std::strin
   }
   std::filesystem::create_directories(dir);
   const EdmSettings settings = edm_settings(scene);
-  ThermoCsvWriter thermo(dir + "/thermo.csv");
+  std::vector<std::string> wall_names;
+  if (scene.output.wall_loads)
+    for (const auto& w : sys.walls) wall_names.push_back(w.name);
+  ThermoCsvWriter thermo(dir + "/thermo.csv", wall_names, D);
   std::unique_ptr<EventLogWriter<D>> log;
   std::vector<Observer<D>*> observers{static_cast<Observer<D>*>(&thermo)};
   if (scene.output.events) {

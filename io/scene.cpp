@@ -594,11 +594,12 @@ Scene build_scene(toml::table& root, const std::string& file, const fs::path& ba
   // [output]
   if (top.has("output")) {
     const TableReader out = top.sub("output");
-    out.allow({"dir", "thermo_interval", "events", "snapshot_interval"});
+    out.allow({"dir", "thermo_interval", "events", "snapshot_interval", "wall_loads"});
     scene.output.dir = out.string_opt("dir").value_or(scene.output.dir);
     scene.output.thermo_interval = out.number_or("thermo_interval", 0.0, kNonNegative);
     scene.output.events = out.boolean_or("events", false);
     scene.output.snapshot_interval = out.number_or("snapshot_interval", 0.0, kNonNegative);
+    scene.output.wall_loads = out.boolean_or("wall_loads", false);
   }
 
   if (!top.has("domain")) top.need("domain");

@@ -30,6 +30,7 @@ struct OutputSpec {
   double thermo_interval = 0.0;    // 0 = rows at t = 0 and at the end only
   bool events = false;             // write events.bin
   double snapshot_interval = 0.0;  // VTK snapshots every interval (0 = none)
+  bool wall_loads = false;         // thermo.csv gets each wall's mean force and torque
 };
 
 // [hybrid]: the switching rule of run.method = "hybrid" (engine/hybrid.hpp); unset = default.

@@ -36,6 +36,7 @@
 #include "engine/grid.hpp"
 #include "engine/huge_pages.hpp"
 #include "engine/rough_rules.hpp"
+#include "engine/wall_loads.hpp"
 
 namespace matep::edm {
 
@@ -137,8 +138,10 @@ class EdmCore {
     for (const auto& mat : sys.materials) all_elastic_ = all_elastic_ && mat.restitution.is_elastic();
     for (const auto& wall : sys.walls) {
       shapes_.push_back(wall.shape.get());
+      anchors_.push_back(wall.shape->anchor());
       bracketed_walls_ = bracketed_walls_ || wall.geometry().bracketed();
     }
+    wall_loads_.resize(shapes_.size());
     setup_rough(rough);
     const double margin = derived().ext_cell_margin();
     build_cells(2.0 * rmax, margin);
@@ -621,10 +624,13 @@ class EdmCore {
       rec.vi_before = a.v;
       fill_spins(rec, i, -1, /*before=*/true);
     }
+    const Vec<D> v_before = a.v;
     if (rough_ && rough_rules_.is_rough(cold_[i].mat, wall.material))
       rough_wall(i, wall, normal, u, e);
     else
       smooth_moving_wall_collision(a.v, mass(i), normal, u, e);
+    // The wall receives -m dv at the contact point (engine/wall_loads.hpp).
+    wall_loads_.add(static_cast<std::size_t>(w), anchors_[w], a.x - (a.R + c.gap) * normal, -mass(i) * (a.v - v_before));
     ++cold_[i].counter;
     ++counts_.wall;
     note_collision(i);
@@ -722,10 +728,12 @@ class EdmCore {
     ++counts_.samples;
     if (observers_.empty()) {
       virial_ = 0.0;
+      wall_loads_.clear();
       return;
     }
     ThermoSample s;
     s.time = t;
+    if (interval > 0.0) wall_loads_.report(interval, s.wall_loads);
     double mv2 = 0.0, pe = 0.0, rot = 0.0;
     for (int i = 0; i < N_; ++i) {
       const Hot<D>& h = hot_[i];
@@ -798,6 +806,8 @@ class EdmCore {
   Vec<D> g_, lo_, hi_, L_;
   bool gravity_ = false, all_elastic_ = false;
   std::vector<const WallShape<D>*> shapes_;  // sys_.walls[w].shape
+  std::vector<Vec<D>> anchors_;               // their anchors (torque reference)
+  WallLoads<D> wall_loads_;                   // the grains' impulses on the walls since the last sample
   bool bracketed_walls_ = false;  // some wall's impact time is a bracketing search
   double window_ = 0.0;
   double now_ = 0.0;

@@ -84,6 +84,8 @@ class HybridEngine final : public edm::EdmCore<D, CalendarQueue, HybridEngine<D>
   using Base::gravity_;
   using Base::all_elastic_;
   using Base::shapes_;
+  using Base::anchors_;
+  using Base::wall_loads_;
   using Base::bracketed_walls_;
   using Base::window_;
   using Base::now_;
@@ -904,13 +906,16 @@ class HybridEngine final : public edm::EdmCore<D, CalendarQueue, HybridEngine<D>
     for (auto& e : we_) {
       const int i = e.i;
       bool began = false;
-      const double delta = walls_.with_wall(e.w, [&](const auto& shape) {
+      const soft::WallContact<D> c = walls_.with_wall(e.w, [&](const auto& shape) {
         return soft::wall_contact<D, Law, Rot>(shape, wall_t_, h, onset_ok, hot_[i].x, hot_[i].R, vh_[i], acc_[i],
                                                Rot ? wh_[i] : no_spin, Rot ? alpha_[i] : no_spin, ctab_[e.c], e.touch,
                                                e.xi, began, f_[i], Rot ? tq_[i] : tq_none);
       });
       begun += began;
-      if (delta > 0.0) touching_[i] = 1;
+      if (c.delta > 0.0) {
+        touching_[i] = 1;
+        wall_loads_.add(static_cast<std::size_t>(e.w), anchors_[e.w], c.point, -h * c.force);
+      }
     }
     hstats_soft_begun_ += begun;
     virial_ += pol.vir * h;  // impulse times distance over the substep, as the hard collisions

@@ -235,12 +235,19 @@ template <int D, NormalLaw Law, bool Rot, class Pos, class Policy>
 
 // One wall contact of particle i at time t (the walls' state: contact/wall.hpp): adds its force and
 // torque to f and tq, keeps the touching flag and the spring, and returns the overlap (<= 0: no
-// contact). `began` is set when the contact begins at this evaluation; `onset_ok` as in pair_rows.
+// contact), the force and the contact point (for the wall's load). `began` is set when the contact begins at this evaluation; `onset_ok` as in pair_rows.
 // Shape: WallShape<D> (any wall, through its virtual interface) or a class with the same at() and
 // surface_velocity(), such as PlaneInstant<D>, whose calls the compiler then inlines (the engines'
 // fast path for planes; see WallsNow below).
+template <int D>
+struct WallContact {
+  double delta = 0.0;              // overlap (<= 0: no contact)
+  Vec<D> force = Vec<D>::Zero();   // the contact's force on the particle
+  Vec<D> point = Vec<D>::Zero();   // the wall's surface point of the contact, x - (R - delta) n
+};
+
 template <int D, NormalLaw Law, bool Rot, class Shape = WallShape<D>>
-[[gnu::always_inline]] inline double wall_contact(const Shape& W, double t, double h, bool onset_ok,
+[[gnu::always_inline]] inline WallContact<D> wall_contact(const Shape& W, double t, double h, bool onset_ok,
                                                   const Vec<D>& x, double R, const Vec<D>& vh, const Vec<D>& acc,
                                                   const Spin<D>& wh, const Spin<D>& alpha, SoftContact c,
                                                   std::uint8_t& touch, Vec<D>& xi, bool& began, Vec<D>& f,
@@ -251,13 +258,16 @@ template <int D, NormalLaw Law, bool Rot, class Shape = WallShape<D>>
   const Vec<D>& u = wp.velocity;
   const double delta = -wp.gap;
   began = false;
+  WallContact<D> out;
+  out.delta = delta;
   if (delta <= 0.0) {
     if (touch) {
       touch = 0;
       if constexpr (Rot) xi.setZero();
     }
-    return delta;
+    return out;
   }
+  out.point = x - (R - delta) * n;
   double onset = -1.0;
   if (!touch) {
     touch = 1;
@@ -270,7 +280,8 @@ template <int D, NormalLaw Law, bool Rot, class Shape = WallShape<D>>
   if constexpr (!Rot) {
     double fn = normal_force_law<Law>(c, delta, vi.dot(n));
     if (c.clip && fn < 0.0) fn = 0.0;
-    f += fn * n;
+    out.force = fn * n;
+    f += out.force;
   } else {
     const double li = wall_lever_arm(R, delta);
     ContactKinematics<D> k;
@@ -282,10 +293,11 @@ template <int D, NormalLaw Law, bool Rot, class Shape = WallShape<D>>
     ContactHistory<D> hist{xi};
     const ContactForce<D> cf = soft_contact_force_law<D, Law>(c, k, hist);
     xi = hist.xi;
+    out.force = cf.force;
     f += cf.force;
     tq += contact_torque<D>(n, cf.tangential, li);
   }
-  return delta;
+  return out;
 }
 
 // The walls of one force evaluation: each plane frozen at the evaluation's times (PlaneInstant,

@@ -14,6 +14,7 @@
 #include "engine/soft/forces.hpp"
 #include "engine/soft/springs.hpp"
 #include "engine/soft/verlet.hpp"
+#include "engine/wall_loads.hpp"
 
 namespace matep {
 
@@ -56,7 +57,7 @@ class TdmEngine {
   template <bool Rot, bool Uniform, NormalLaw Law, bool Fuse>
   void pair_range(int t);
   template <bool Rot, bool Uniform, NormalLaw Law>
-  void wall_contact_force(std::uint32_t e, Acc& acc);
+  void wall_contact_force(std::uint32_t e, Acc& acc, WallLoads<D>& loads);
   template <NormalLaw Law, bool Fuse>
   void force_body(int t);
   bool integrate_one(std::uint32_t i);
@@ -131,6 +132,9 @@ class TdmEngine {
   std::vector<std::uint8_t> boundary_;
   std::vector<std::uint32_t> boundary_list_;
   std::vector<Acc> acc_t_;
+  std::vector<WallLoads<D>> loads_t_;  // each thread's wall impulses since the last sample
+  std::vector<Vec<D>> anchors_;        // each wall's anchor (torque reference)
+  double last_sample_t_ = 0.0;
   soft::SpringMemory<D> springs_;  // contacts remembered across a rebuild
 
   std::uint64_t steps_ = 0, rebuilds_ = 0, pair_begun_ = 0, wall_begun_ = 0;
@@ -238,6 +242,9 @@ void TdmEngine<D>::setup() {
   whi_.resize(T_);
   spill_.resize(T_);
   acc_t_.resize(T_);
+  loads_t_.resize(T_);
+  for (auto& l : loads_t_) l.resize(shapes_.size());
+  for (const WallShape<D>* w : shapes_) anchors_.push_back(w->anchor());
 }
 
 template <int D>
@@ -396,6 +403,7 @@ struct TdmEngine<D>::RangePolicy {
                         kSparseRows = false;
   TdmEngine& eng;
   Acc& acc;
+  WallLoads<D>& loads;
   std::vector<Spill<D>>& spill;
   const std::uint32_t lo, hi;
   std::uint32_t ew;  // wall entries are sorted by particle
@@ -403,7 +411,7 @@ struct TdmEngine<D>::RangePolicy {
   bool moved = false;
 
   RangePolicy(TdmEngine& e, int t)
-      : eng(e), acc(e.acc_t_[t]), spill(e.spill_[t]), lo(e.lo_[t]), hi(e.hi_[t]), ew(e.wlo_[t]), ew_end(e.whi_[t]) {}
+      : eng(e), acc(e.acc_t_[t]), loads(e.loads_t_[t]), spill(e.spill_[t]), lo(e.lo_[t]), hi(e.hi_[t]), ew(e.wlo_[t]), ew_end(e.whi_[t]) {}
 
   bool onset() const { return !eng.initial_; }
   const SoftContact& contact(std::uint32_t, std::uint32_t i, std::uint32_t j, SoftContact& scratch) const {
@@ -434,7 +442,7 @@ struct TdmEngine<D>::RangePolicy {
   }
   void virial(const Vec<D>&, const Vec<D>&) {}
   [[gnu::always_inline]] void row_done(std::uint32_t i) {
-    for (; ew < ew_end && eng.wl_i_[ew] == i; ++ew) eng.wall_contact_force<Rot, Uniform, Law>(ew, acc);
+    for (; ew < ew_end && eng.wl_i_[ew] == i; ++ew) eng.wall_contact_force<Rot, Uniform, Law>(ew, acc, loads);
     // Every pair entry has j > i (storage is sorted by cell), so i's force is complete here unless
     // a lower thread range still adds to it: integrate it now and never read it again this step.
     // (The engine's arrays are read here, once per row, rather than held through the row's loop.)
@@ -463,17 +471,19 @@ template <bool Rot, bool Uniform, NormalLaw Law, bool Fuse>
 
 template <int D>
 template <bool Rot, bool Uniform, NormalLaw Law>
-inline void TdmEngine<D>::wall_contact_force(std::uint32_t e, Acc& acc) {
+inline void TdmEngine<D>::wall_contact_force(std::uint32_t e, Acc& acc, WallLoads<D>& loads) {
   const std::uint32_t i = wl_i_[e];
   const int w = static_cast<int>(wl_w_[e]);
   bool began = false;
   Vec<D> no_spring = Vec<D>::Zero();
-  const double delta = walls_.with_wall(w, [&](const auto& shape) {
+  const soft::WallContact<D> c = walls_.with_wall(w, [&](const auto& shape) {
     return soft::wall_contact<D, Law, Rot>(shape, wall_t_, dt_, !initial_, x_[i], R_[i], v_[i], acc_[i], w_[i],
                                            alpha_[i], Uniform ? cwall_[w] : wall_coeffs(w, i), wl_touch_[e],
                                            Rot ? wl_xi_[e] : no_spring, began, f_[i], tq_[i]);
   });
   if (began) ++acc.new_wall;
+  const double delta = c.delta;
+  if (delta > 0.0) loads.add(static_cast<std::size_t>(w), anchors_[w], c.point, -dt_ * c.force);
   if (delta > acc.max_rel * R_[i]) acc.max_rel = delta / R_[i];
   if (delta > acc.max_abs) acc.max_abs = delta;
 }
@@ -597,6 +607,15 @@ ThermoSample TdmEngine<D>::sample(double time) {
   s.temperature = N_ > 0 ? mv2 / (D * static_cast<double>(N_)) : 0.0;
   s.collisions = pair_begun_ + wall_begun_;
   s.pressure = (mv2 + vir) / (D * sys_.volume());
+  // The walls' loads: the threads' impulses in thread order, as means over the interval.
+  if (time > last_sample_t_) {
+    for (int t = 1; t < T_; ++t) {
+      loads_t_[0].add(loads_t_[t]);
+      loads_t_[t].clear();
+    }
+    loads_t_[0].report(time - last_sample_t_, s.wall_loads);
+    last_sample_t_ = time;
+  }
   return s;
 }
 

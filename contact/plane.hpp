@@ -7,6 +7,7 @@
 
 #include <fmt/format.h>
 
+#include <algorithm>
 #include <cmath>
 #include <memory>
 #include <numbers>
@@ -79,6 +80,62 @@ class PlaneWall final : public WallShape<D> {
   bool moving() const override { return oscillating(); }
   bool has_normal(const Vec<D>& n, double tol) const override { return (n - normal).norm() <= tol; }
   Vec<D> anchor() const override { return point; }
+  // The plane at p(t) cut by the box: in 3D the convex polygon where it crosses the box's edges
+  // (ordered by angle about their centroid), in 2D the segment where the line crosses the box.
+  void tessellate(double t, const Vec<D>& lo, const Vec<D>& hi, SurfaceMesh& out) const override {
+    const Vec<D> p = position(t);
+    std::vector<Vec<D>> hits;
+    // Each box edge: the corners that differ along axis k only.
+    for (int k = 0; k < D; ++k)
+      for (int m = 0; m < (1 << (D - 1)); ++m) {
+        Vec<D> a, b;
+        for (int q = 0, bit = 0; q < D; ++q) {
+          if (q == k) {
+            a[q] = lo[q];
+            b[q] = hi[q];
+          } else {
+            a[q] = b[q] = ((m >> bit++) & 1) ? hi[q] : lo[q];
+          }
+        }
+        const double fa = (a - p).dot(normal), fb = (b - p).dot(normal);
+        if ((fa > 0.0 && fb > 0.0) || (fa < 0.0 && fb < 0.0)) continue;  // the edge does not reach it
+        const double s = fa == fb ? 0.0 : fa / (fa - fb);
+        hits.push_back(a + s * (b - a));
+      }
+    // A plane through a corner crosses several edges there: one point each.
+    const double tol = 1e-12 * (hi - lo).norm();
+    std::vector<Vec<D>> uniq;
+    for (const auto& h : hits) {
+      bool seen = false;
+      for (const auto& q : uniq) seen = seen || (q - h).norm() <= tol;
+      if (!seen) uniq.push_back(h);
+    }
+    hits = std::move(uniq);
+    if (hits.size() < 2) return;
+    Vec<D> c = Vec<D>::Zero();
+    for (const auto& h : hits) c += h;
+    c /= static_cast<double>(hits.size());
+    std::vector<std::pair<double, Vec<D>>> ordered;
+    if constexpr (D == 3) {
+      const Vec<D> u = (std::abs(normal[0]) < 0.9 ? Vec<D>(1, 0, 0) : Vec<D>(0, 1, 0)).cross(normal).normalized();
+      const Vec<D> w = normal.cross(u);
+      for (const auto& h : hits) ordered.emplace_back(std::atan2((h - c).dot(w), (h - c).dot(u)), h);
+    } else {
+      const Vec<D> u(-normal[1], normal[0]);
+      for (const auto& h : hits) ordered.emplace_back((h - c).dot(u), h);
+    }
+    std::sort(ordered.begin(), ordered.end(), [](const auto& x, const auto& y) { return x.first < y.first; });
+    std::vector<std::uint32_t> cell;
+    if constexpr (D == 2) {  // the two extreme crossings
+      ordered = {ordered.front(), ordered.back()};
+    }
+    for (const auto& [key, h] : ordered) {
+      (void)key;
+      cell.push_back(static_cast<std::uint32_t>(out.points.size()));
+      out.points.push_back({h[0], h[1], D == 3 ? h[D - 1] : 0.0});
+    }
+    out.cells.push_back(std::move(cell));
+  }
 };
 
 // The plane shape of a wall, or null when the wall has another shape.

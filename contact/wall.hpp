@@ -9,9 +9,12 @@
 // the model), its scene keys in io/scene.cpp and its tests. Nothing in engine/ changes.
 #pragma once
 
+#include <array>
 #include <cmath>
+#include <cstdint>
 #include <limits>
 #include <string>
+#include <vector>
 
 #include <Eigen/Geometry>
 
@@ -47,6 +50,13 @@ struct AxisRotation {
       return omega * axis.cross(r);
     }
   }
+};
+
+// A picture of a wall surface for the snapshots: points (x, y, z; z = 0 in 2D) and cells, each a
+// list of point indices: polygons in 3D, polylines in 2D.
+struct SurfaceMesh {
+  std::vector<std::array<double, 3>> points;
+  std::vector<std::vector<std::uint32_t>> cells;
 };
 
 template <int D>
@@ -94,6 +104,15 @@ class WallShape {
     (void)lo;
     (void)hi;
     return false;
+  }
+
+  // The surface at time t as a SurfaceMesh, an unbounded one clipped to the box [lo, hi] (the
+  // domain); appended to out. A shape without a picture leaves out empty.
+  virtual void tessellate(double t, const Vec<D>& lo, const Vec<D>& hi, SurfaceMesh& out) const {
+    (void)t;
+    (void)lo;
+    (void)hi;
+    (void)out;
   }
 
   // Whether n is the wall's normal at some point of its surface (within tol): `matep log verify`

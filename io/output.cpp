@@ -250,8 +250,44 @@ void ThermoCsvWriter::on_sample(const ThermoSample& s) {
 // ---- VTK snapshots ---------------------------------------------------------------------------
 
 template <int D>
-VtkSnapshotWriter<D>::VtkSnapshotWriter(const std::string& dir) : dir_(dir) {
+VtkSnapshotWriter<D>::VtkSnapshotWriter(const std::string& dir, const std::vector<Wall<D>>& walls,
+                                        const Vec<D>& lower, const Vec<D>& upper)
+    : dir_(dir), walls_(walls), lower_(lower), upper_(upper), static_file_(walls.size()) {
   std::filesystem::create_directories(dir_ + "/snapshots");
+}
+
+// One wall's surface at time t as VTK PolyData (polygons in 3D, lines in 2D).
+template <int D>
+std::string VtkSnapshotWriter<D>::wall_file(std::size_t w, double t) {
+  const WallShape<D>& shape = walls_[w].geometry();
+  const bool moving = shape.moving();
+  if (!moving && !static_file_[w].empty()) return static_file_[w];
+  std::string name = walls_[w].name;  // a file name: characters other than [A-Za-z0-9_-] become _
+  for (char& ch : name)
+    if (!(std::isalnum(static_cast<unsigned char>(ch)) || ch == '_' || ch == '-')) ch = '_';
+  const std::string rel = moving ? fmt::format("snapshots/wall_{}_{:06d}.vtp", name, written_.size())
+                                 : fmt::format("snapshots/wall_{}.vtp", name);
+  SurfaceMesh m;
+  shape.tessellate(t, lower_, upper_, m);
+  std::FILE* f = open_or_throw(dir_ + "/" + rel, "w");
+  const char* kind = D == 3 ? "Polys" : "Lines";
+  fmt::print(f, "<?xml version=\"1.0\"?>\n<VTKFile type=\"PolyData\" version=\"0.1\" byte_order=\"LittleEndian\">\n"
+                "  <PolyData>\n    <Piece NumberOfPoints=\"{}\" NumberOfVerts=\"0\" NumberOfLines=\"{}\" "
+                "NumberOfStrips=\"0\" NumberOfPolys=\"{}\">\n      <Points>\n"
+                "        <DataArray type=\"Float64\" NumberOfComponents=\"3\" format=\"ascii\">\n",
+             m.points.size(), D == 2 ? m.cells.size() : 0, D == 3 ? m.cells.size() : 0);
+  for (const auto& p : m.points) fmt::print(f, "{:.17g} {:.17g} {:.17g}\n", p[0], p[1], p[2]);
+  fmt::print(f, "        </DataArray>\n      </Points>\n      <{}>\n"
+                "        <DataArray type=\"Int32\" Name=\"connectivity\" format=\"ascii\">\n", kind);
+  for (const auto& c : m.cells)
+    for (const auto k : c) fmt::print(f, "{}\n", k);
+  fmt::print(f, "        </DataArray>\n        <DataArray type=\"Int32\" Name=\"offsets\" format=\"ascii\">\n");
+  std::size_t off = 0;
+  for (const auto& c : m.cells) fmt::print(f, "{}\n", off += c.size());
+  fmt::print(f, "        </DataArray>\n      </{}>\n    </Piece>\n  </PolyData>\n</VTKFile>\n", kind);
+  std::fclose(f);
+  if (!moving) static_file_[w] = rel;
+  return rel;
 }
 
 template <int D>
@@ -298,14 +334,17 @@ void VtkSnapshotWriter<D>::on_snapshot(const Snapshot<D>& snap) {
   for (std::size_t i = 0; i < n; ++i) fmt::print(f, "{}\n", i + 1);
   fmt::print(f, "        </DataArray>\n      </Verts>\n    </Piece>\n  </PolyData>\n</VTKFile>\n");
   std::fclose(f);
-  written_.emplace_back(snap.time, rel);
+  std::vector<std::string> files{rel};
+  for (std::size_t w = 0; w < walls_.size(); ++w) files.push_back(wall_file(w, snap.time));
+  written_.emplace_back(snap.time, std::move(files));
   // The collection is rewritten whole (to a temporary, then renamed) after every snapshot.
   const std::string pvd = dir_ + "/snapshots.pvd", tmp = pvd + ".tmp";
   std::FILE* c = open_or_throw(tmp, "w");
   fmt::print(c, "<?xml version=\"1.0\"?>\n<VTKFile type=\"Collection\" version=\"0.1\" byte_order=\"LittleEndian\">\n"
                 "  <Collection>\n");
-  for (const auto& [t, file] : written_)
-    fmt::print(c, "    <DataSet timestep=\"{:.17g}\" group=\"\" part=\"0\" file=\"{}\"/>\n", t, file);
+  for (const auto& [t, files] : written_)
+    for (std::size_t k = 0; k < files.size(); ++k)
+      fmt::print(c, "    <DataSet timestep=\"{:.17g}\" group=\"\" part=\"{}\" file=\"{}\"/>\n", t, k, files[k]);
   fmt::print(c, "  </Collection>\n</VTKFile>\n");
   std::fclose(c);
   std::filesystem::rename(tmp, pvd);

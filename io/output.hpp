@@ -104,13 +104,23 @@ class ThermoCsvWriter final : public Observer<2>, public Observer<3> {
 template <int D>
 class VtkSnapshotWriter final : public Observer<D> {
  public:
-  explicit VtkSnapshotWriter(const std::string& dir);
+  // With walls (and the domain box that clips unbounded ones), every snapshot time of the series
+  // also shows each wall's surface: DIR/snapshots/wall_NAME.vtp once for a wall at rest,
+  // DIR/snapshots/wall_NAME_NNNNNN.vtp at every snapshot for a moving one; the .pvd lists the grains
+  // as part 0 and wall k as part k + 1.
+  explicit VtkSnapshotWriter(const std::string& dir, const std::vector<Wall<D>>& walls = {},
+                             const Vec<D>& lower = Vec<D>::Zero(), const Vec<D>& upper = Vec<D>::Zero());
   bool wants_snapshots() const override { return true; }
   void on_snapshot(const Snapshot<D>& snap) override;
 
  private:
+  std::string wall_file(std::size_t w, double t);  // writes it when needed; the relative path
   std::string dir_;
-  std::vector<std::pair<double, std::string>> written_;  // (time, file relative to dir_)
+  std::vector<Wall<D>> walls_;
+  Vec<D> lower_, upper_;
+  std::vector<std::string> static_file_;  // per wall: its file once written (walls at rest)
+  // (time, files relative to dir_: the grains', then each wall's)
+  std::vector<std::pair<double, std::vector<std::string>>> written_;
 };
 
 template <int D>

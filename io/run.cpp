@@ -147,7 +147,7 @@ RunOutcome run_system(const Scene& scene, const System<D>& sys, const std::strin
   }
   std::unique_ptr<VtkSnapshotWriter<D>> vtk;
   if (scene.output.snapshot_interval > 0.0) {
-    vtk = std::make_unique<VtkSnapshotWriter<D>>(dir);
+    vtk = std::make_unique<VtkSnapshotWriter<D>>(dir, sys.walls, sys.lower, sys.upper);
     observers.push_back(vtk.get());
   }
   std::unique_ptr<ProgressObserver> prog;

@@ -10,6 +10,7 @@
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
+#include <numbers>
 #include <sstream>
 #include <string>
 #include <vector>
@@ -217,8 +218,9 @@ TEST(Cli, PeriodicAxisTooShortIsRefusedBeforeAnythingIsWritten) {
 
 namespace {
 // The numbers of the DataArray named `name` in a .vtp file written by matep.
+// An empty name: the first DataArray.
 std::vector<double> vtp_array(const std::string& text, const std::string& name) {
-  const auto tag = text.find("Name=\"" + name + "\"");
+  const auto tag = name.empty() ? text.find("<DataArray") : text.find("Name=\"" + name + "\"");
   if (tag == std::string::npos) return {};
   const auto start = text.find('>', tag) + 1;
   const auto end = text.find("</DataArray>", start);
@@ -270,6 +272,41 @@ TEST(Cli, VtkSnapshotsAndTheirTimeSeriesReadBack) {
     EXPECT_EQ(rad[i], f[10]);
     EXPECT_EQ(mode[i], 0.0);  // hard
   }
+  fs::remove_all(d);
+}
+
+// The snapshots show the walls: the vibrated bed's floor oscillates, p(t) = (0, 0.006 sin(2 pi 20 t)),
+// and gets a file per snapshot whose segment spans the domain (x from 0 to 0.2) at the floor's
+// height at that time; the side walls are at rest and written once, listed at every time.
+TEST(Cli, SnapshotsShowTheWallsMovingWithTheirSurface) {
+  const fs::path d = tmpdir("wall_vtk");
+  const Result r = sh("run " + kCases + "vibrated_bed.toml --set run.end_time=0.02 --set output.snapshot_interval=0.0125 "
+                      "--out " + d.string());
+  ASSERT_EQ(r.code, 0) << r.out;
+  const std::string pvd = slurp(d / "snapshots.pvd");
+  const double times[] = {0.0, 0.0125, 0.02};
+  for (int k = 0; k < 3; ++k) {
+    const std::string file = "snapshots/wall_floor_00000" + std::to_string(k) + ".vtp";
+    EXPECT_NE(pvd.find("part=\"1\" file=\"" + file + "\""), std::string::npos) << pvd;
+    const auto pts = vtp_array(slurp(d / file), "");  // the first DataArray: the points
+    ASSERT_EQ(pts.size(), 6u) << file;
+    const double y = 0.006 * std::sin(2.0 * std::numbers::pi * 20.0 * times[k]);
+    EXPECT_NEAR(std::min(pts[0], pts[3]), 0.0, 1e-15);
+    EXPECT_NEAR(std::max(pts[0], pts[3]), 0.2, 1e-15);
+    EXPECT_NEAR(pts[1], y, 1e-15) << file;
+    EXPECT_NEAR(pts[4], y, 1e-15) << file;
+  }
+  EXPECT_TRUE(fs::exists(d / "snapshots/wall_left.vtp"));
+  EXPECT_FALSE(fs::exists(d / "snapshots/wall_left_000001.vtp"));
+  std::size_t listed = 0;
+  for (auto at = pvd.find("wall_right.vtp"); at != std::string::npos; at = pvd.find("wall_right.vtp", at + 1)) ++listed;
+  EXPECT_EQ(listed, 3u);
+  const auto x = vtp_array(slurp(d / "snapshots/wall_right.vtp"), "");
+  ASSERT_EQ(x.size(), 6u);
+  EXPECT_EQ(x[0], 0.2);  // the line x = 0.2 from y = -0.01 to 1
+  EXPECT_EQ(x[3], 0.2);
+  EXPECT_NEAR(std::min(x[1], x[4]), -0.01, 1e-15);
+  EXPECT_NEAR(std::max(x[1], x[4]), 1.0, 1e-15);
   fs::remove_all(d);
 }
 

@@ -6,6 +6,7 @@
 #include <random>
 
 #include "contact/hard.hpp"
+#include "contact/plane.hpp"
 #include "contact/predict.hpp"
 #include "contact/restitution.hpp"
 #include "contact/vec.hpp"
@@ -178,4 +179,39 @@ TEST(Restitution, Models) {
   x.a = 0.1;
   EXPECT_NEAR(x(10.0), 0.9 * std::exp(-1.0), 1e-15);
   EXPECT_DOUBLE_EQ(mixed_restitution(c, x, 10.0), 0.5 * (0.7 + 0.9 * std::exp(-1.0)));
+}
+
+// A plane's picture is its cut by the box: the plane x + y + z = 1.5 through the unit cube's centre
+// crosses six of its edges at their midpoints (a regular hexagon of side sqrt(2)/2); z = 0.25 cuts a
+// unit square; x = 1 is the cube's face; a tilted line in 2D crosses the unit square at two points on the line.
+TEST(WallPicture, PlaneCutByTheBox) {
+  const Vec<3> lo = Vec<3>::Zero(), hi = Vec<3>::Ones();
+  SurfaceMesh m;
+  PlaneWall<3>(Vec<3>(0.5, 0.5, 0.5), Vec<3>(1, 1, 1).normalized()).tessellate(0.0, lo, hi, m);
+  ASSERT_EQ(m.cells.size(), 1u);
+  ASSERT_EQ(m.points.size(), 6u);
+  for (std::size_t k = 0; k < 6; ++k) {
+    const auto& p = m.points[m.cells[0][k]];
+    const auto& q = m.points[m.cells[0][(k + 1) % 6]];
+    EXPECT_NEAR(p[0] + p[1] + p[2], 1.5, 1e-15);
+    // Consecutive corners of the ordered polygon are one side apart.
+    EXPECT_NEAR(std::hypot(p[0] - q[0], p[1] - q[1], p[2] - q[2]), std::sqrt(0.5), 1e-14);
+  }
+  SurfaceMesh sq;
+  PlaneWall<3>(Vec<3>(0.0, 0.0, 0.25), Vec<3>(0, 0, 1)).tessellate(0.0, lo, hi, sq);
+  ASSERT_EQ(sq.points.size(), 4u);
+  for (const auto& p : sq.points) EXPECT_EQ(p[2], 0.25);
+  // A wall on a face of the box (the usual closed box): that face, its four corners once each.
+  SurfaceMesh face;
+  PlaneWall<3>(Vec<3>(1.0, 0.0, 0.0), Vec<3>(-1, 0, 0)).tessellate(0.0, lo, hi, face);
+  ASSERT_EQ(face.points.size(), 4u);
+  for (const auto& p : face.points) EXPECT_EQ(p[0], 1.0);
+  SurfaceMesh seg;
+  PlaneWall<2>(Vec<2>(0.5, 0.5), Vec<2>(1, 2).normalized()).tessellate(0.0, Vec<2>::Zero(), Vec<2>::Ones(), seg);
+  ASSERT_EQ(seg.cells.size(), 1u);
+  ASSERT_EQ(seg.points.size(), 2u);
+  for (const auto& p : seg.points) {
+    EXPECT_NEAR((p[0] - 0.5) + 2.0 * (p[1] - 0.5), 0.0, 1e-15);
+    EXPECT_EQ(p[2], 0.0);
+  }
 }

@@ -62,24 +62,50 @@ class CellGrid {
  public:
   static constexpr int kStencil = D == 3 ? 27 : 9;
 
-  // Cells at least `width` wide over [lo, hi] (on a periodic axis: the domain, wrapped), coarsened
-  // uniformly (by 0.8 per round; a periodic axis keeps three cells) until there are at most
-  // max_cells. Returns false when a periodic axis has fewer than three cells of `width`.
+  // Cells at least `width` wide over [lo, hi] (on a periodic axis: the domain, wrapped). When that
+  // makes more than max_cells cells: coarsened uniformly (by 0.8 per round; a periodic axis keeps
+  // three cells) until there are at most max_cells, or, with `hash` and more than kHashFactor
+  // times max_cells (a mostly empty domain: a pipe, a tall hopper), kept at their width and stored
+  // in a hash table of at least max_cells buckets (spatial hashing, Teschner et al., VMV 2003):
+  // memory then grows with the grains, not with the domain's volume, and the cells stay narrow.
+  // Returns false when a periodic axis has fewer than three cells of `width`.
+  static constexpr double kHashFactor = 8.0;
+  // The number of cells of at least `width` over [lo, hi] before any coarsening or hashing.
+  static double natural_cells(const Vec<D>& lo, const Vec<D>& hi, double width, double max_per_axis = 1 << 20) {
+    double total = 1.0;
+    for (int k = 0; k < D; ++k)
+      total *= width > 0.0 ? std::max(1.0, std::min(max_per_axis, std::floor((hi[k] - lo[k]) / width))) : 1.0;
+    return total;
+  }
   bool build(const Vec<D>& lo, const Vec<D>& hi, const std::array<bool, D>& periodic, double width, double max_cells,
-             double max_per_axis = 1 << 20) {
+             double max_per_axis = 1 << 20, bool hash = false) {
     lo_ = lo;
     len_ = hi - lo;
     periodic_ = periodic;
+    hashed_ = false;
     bool ok = true;
+    double total = 1.0;
     for (int k = 0; k < D; ++k) {
       int n = width > 0.0 ? static_cast<int>(std::min(max_per_axis, std::floor(len_[k] / width))) : 1;
       n = std::max(1, n);
       ok = ok && !(periodic_[k] && n < 3);
       n_[k] = n;
       w_[k] = len_[k] / n;
+      total *= n;
+    }
+    if (hash && total > kHashFactor * max_cells) {
+      hashed_ = true;
+      std::uint64_t b = 64;
+      while (static_cast<double>(b) < max_cells) b *= 2;
+      mask_ = b - 1;
+      cells_ = static_cast<int>(b);
+      for (int k = 0; k < D; ++k) stride_[k] = 0;  // no linear layout
+      offsets_all_.clear();
+      for (auto& l : offsets_layer_) l.clear();
+      return ok;
     }
     for (;;) {
-      double total = 1.0;
+      total = 1.0;
       for (int k = 0; k < D; ++k) total *= n_[k];
       if (total <= max_cells) break;
       for (int k = 0; k < D; ++k) {
@@ -108,6 +134,9 @@ class CellGrid {
     return ok;
   }
 
+  // Whether the cells are hashed (then cells() counts buckets, a bucket may hold grains of several
+  // far-apart cells, and there is no linear layout: interior() is false, half_stencil() unused).
+  bool hashed() const { return hashed_; }
   int cells() const { return cells_; }
   int count(int k) const { return n_[k]; }
   double width(int k) const { return w_[k]; }
@@ -124,13 +153,16 @@ class CellGrid {
     for (int k = 0; k < D; ++k) c[k] = coord(k, x[k]);
     return c;
   }
+  // The cell's index: its place in the dense layout, or its hash bucket.
   int linear(const std::array<int, D>& c) const {
+    if (hashed_) return bucket(c);
     int l = 0;
     for (int k = 0; k < D; ++k) l += c[k] * stride_[k];
     return l;
   }
   // Whether the 3^D cells around c lie inside the grid (their linear offsets are then fixed).
   bool interior(const std::array<int, D>& c) const {
+    if (hashed_) return false;
     bool in = true;
     for (int k = 0; k < D; ++k) in = in && c[k] >= 1 && c[k] < n_[k] - 1;
     return in;
@@ -146,7 +178,7 @@ class CellGrid {
   // face). A cell is visited once per image; cells beyond a closed face are skipped.
   template <class Cell>
   void around(const std::array<int, D>& c, Cell&& cell, int layer_axis = -1, int layer_dir = 0) const {
-    std::array<int, 3> nk[D];
+    std::array<int, 3> ck[D];
     std::array<double, 3> sk[D];
     std::array<int, D> cnt{};
     for (int k = 0; k < D; ++k) {
@@ -164,20 +196,42 @@ class CellGrid {
           cc -= n_[k];
           s = len_[k];
         }
-        nk[k][cnt[k]] = cc * stride_[k];
+        ck[k][cnt[k]] = cc;
         sk[k][cnt[k]] = s;
         ++cnt[k];
       }
     }
+    // Hashed cells: two cells of the stencil may share a bucket; each (bucket, shift) is visited
+    // once (a second visit would list its grains twice).
+    std::array<std::pair<int, Vec<D>>, kStencil> seen;
+    int nseen = 0;
+    auto visit = [&](const std::array<int, D>& cc, const Vec<D>& s) {
+      const int l = linear(cc);
+      if (hashed_) {
+        for (int q = 0; q < nseen; ++q)
+          if (seen[q].first == l && seen[q].second == s) return;
+        seen[nseen++] = {l, s};
+      }
+      cell(l, s);
+    };
     if constexpr (D == 2) {
       for (int a = 0; a < cnt[0]; ++a)
-        for (int b = 0; b < cnt[1]; ++b) cell(nk[0][a] + nk[1][b], Vec<D>(sk[0][a], sk[1][b]));
+        for (int b = 0; b < cnt[1]; ++b) visit({ck[0][a], ck[1][b]}, Vec<D>(sk[0][a], sk[1][b]));
     } else {
       for (int a = 0; a < cnt[0]; ++a)
         for (int b = 0; b < cnt[1]; ++b)
           for (int e = 0; e < cnt[2]; ++e)
-            cell(nk[0][a] + nk[1][b] + nk[2][e], Vec<D>(sk[0][a], sk[1][b], sk[2][e]));
+            visit({ck[0][a], ck[1][b], ck[2][e]}, Vec<D>(sk[0][a], sk[1][b], sk[2][e]));
     }
+  }
+
+  // The index of an image shift as passed by around() (j's image x_j + shift next to i) in
+  // shift_table()'s numbering, whose entries are added to x_i - x_j: sum_k (1 - shift_k / L_k) 3^k.
+  std::uint8_t shift_index(const Vec<D>& shift) const {
+    int idx = 0;
+    for (int k = 0, p = 1; k < D; ++k, p *= 3)
+      idx += (1 - static_cast<int>(std::lround(shift[k] / len_[k]))) * p;
+    return static_cast<std::uint8_t>(idx);
   }
 
   // The half stencil (TDM's list build): for every cell c the neighbour cells of larger linear
@@ -250,6 +304,18 @@ class CellGrid {
   std::array<bool, D> periodic_{};
   std::array<int, D> n_{}, stride_{};
   int cells_ = 1;
+  bool hashed_ = false;
+  std::uint64_t mask_ = 0;
+  // A cell's bucket: its coordinates mixed (a multiply-xorshift finaliser, after splitmix64) and
+  // masked to the table's power-of-two size.
+  int bucket(const std::array<int, D>& c) const {
+    std::uint64_t h = 0;
+    for (int k = 0; k < D; ++k) h = (h ^ static_cast<std::uint64_t>(static_cast<std::uint32_t>(c[k]))) * 0x9E3779B97F4A7C15ull;
+    h ^= h >> 31;
+    h *= 0xBF58476D1CE4E5B9ull;
+    h ^= h >> 27;
+    return static_cast<int>(h & mask_);
+  }
   std::vector<int> offsets_all_;
   std::array<std::vector<int>, 2 * D> offsets_layer_;
 };

@@ -265,10 +265,11 @@ class EdmCore {
 
   // ---- cells ---------------------------------------------------------------------------------
   // Cells at least one largest diameter dmax plus an extension's list skin (margin) wide
-  // (engine/grid.hpp), at most about two per particle (memory), filled as linked lists.
+  // (engine/grid.hpp), at most about two per particle (memory: coarsened, or hashed when the domain
+  // is mostly empty), filled as linked lists.
   void build_cells(double dmax, double margin) {
     check_periodic_axes<D>(lo_, hi_, sys_.periodic, dmax, margin);
-    grid_.build(lo_, hi_, sys_.periodic, dmax + margin, std::max(64.0, 2.0 * N_));
+    grid_.build(lo_, hi_, sys_.periodic, dmax + margin, std::max(64.0, 2.0 * N_), 1 << 20, /*hash=*/true);
     head_.assign(grid_.cells(), -1);
     next_.assign(N_, -1);
     for (int i = 0; i < N_; ++i) {

@@ -550,18 +550,19 @@ class HybridEngine final : public edm::EdmCore<D, CalendarQueue, HybridEngine<D>
     }
     // At most about four cells per participant (periodic axes keep three).
     const double cap = 4.0 * static_cast<double>(soft_.size() + asleep_list_.size()) + 64.0;
-    sgrid_.build(lo, hi, sys_.periodic, w, cap, 1e6);
+    sgrid_.build(lo, hi, sys_.periodic, w, cap, 1e6, /*hash=*/true);
     const std::size_t cells = static_cast<std::size_t>(sgrid_.cells());
     sg_start_.assign(cells + 1, 0);
     sg_part_.clear();
     sg_cell_.clear();
     auto place = [&](int i) {
-      int l = 0;
+      std::array<int, D> c{};
       for (int k = 0; k < D; ++k) {
         const double u = (hot_[i].x[k] - sgrid_.lower()[k]) / sgrid_.width(k);
         if (!sys_.periodic[k] && !(u >= 0.0 && u < sgrid_.count(k))) return;  // out of reach
-        l += std::clamp(static_cast<int>(u), 0, sgrid_.count(k) - 1) * sgrid_.stride(k);
+        c[k] = std::clamp(static_cast<int>(u), 0, sgrid_.count(k) - 1);
       }
+      const int l = sgrid_.linear(c);
       sg_part_.push_back(i);
       sg_cell_.push_back(l);
       ++sg_start_[static_cast<std::size_t>(l) + 1];

@@ -218,8 +218,14 @@ void TdmEngine<D>::setup() {
   // Cell grid (engine/grid.hpp): cells at least one largest diameter plus the skin wide (at least
   // three on a periodic axis: the preflight's rule), with the half stencil of each cell and the
   // periodic image shifts by index.
-  grid_.build(sys_.lower, sys_.upper, sys_.periodic, dmax + skin_, std::numeric_limits<double>::infinity());
-  grid_.half_stencil(st_off_, st_cell_, st_shift_);
+  // A mostly empty domain (a pipe, a tall silo: more than CellGrid::kHashFactor times the cells it
+  // may hold, about four per particle) hashes its cells instead (memory with the grains).
+  const double max_cells = std::max(64.0, 4.0 * static_cast<double>(N_));
+  if (CellGrid<D>::natural_cells(sys_.lower, sys_.upper, dmax + skin_) > CellGrid<D>::kHashFactor * max_cells)
+    grid_.build(sys_.lower, sys_.upper, sys_.periodic, dmax + skin_, max_cells, 1 << 20, /*hash=*/true);
+  else
+    grid_.build(sys_.lower, sys_.upper, sys_.periodic, dmax + skin_, std::numeric_limits<double>::infinity());
+  if (!grid_.hashed()) grid_.half_stencil(st_off_, st_cell_, st_shift_);
   shifts_ = grid_.shift_table();
   {
     int cs = 0;
@@ -273,7 +279,6 @@ void TdmEngine<D>::rebuild() {
                              id_[i], dt_, plan_.max_stable_dt);
       return;
     }
-    std::size_t c = 0, p = 1;
     for (int k = 0; k < D; ++k) {
       if (sys_.periodic[k]) {
         x[k] = wrap_periodic(x[k], sys_.lower[k], sys_.upper[k]);
@@ -282,9 +287,8 @@ void TdmEngine<D>::rebuild() {
         message_ = escape_message(id_[i], k, static_cast<double>(steps_) * dt_, x[k]);
         return;
       }
-      c += static_cast<std::size_t>(grid_.coord(k, x[k])) * p;
-      p *= static_cast<std::size_t>(grid_.count(k));
     }
+    const std::size_t c = static_cast<std::size_t>(grid_.linear(grid_.coords(x)));
     cell_of_[i] = static_cast<std::uint32_t>(c);
     ++cell_start_[c + 1];
   }
@@ -315,7 +319,28 @@ void TdmEngine<D>::rebuild() {
   off_.assign(N_ + 1, 0);
   nb_.clear();
   sh_.clear();
-  for (std::size_t c = 0; c < ncell; ++c) {
+  if (grid_.hashed()) {
+    // Hashed cells: every cell around i (a bucket may also hold grains of far cells, which the
+    // distance test drops), partners j > i only: each pair once, in the row of its lower index.
+    for (std::uint32_t i = 0; i < N_; ++i) {
+      const Vec<D> xi = x_[i];
+      const double Ri = R_[i] + skin_;
+      grid_.around(grid_.coords(xi), [&](int l, const Vec<D>& shift) {
+        const std::uint8_t s = grid_.shift_index(shift);
+        const Vec<D> xs = xi + shifts_[s];
+        for (std::uint32_t j = cell_start_[l]; j < cell_start_[l + 1]; ++j) {
+          if (j <= i) continue;
+          const double cut = Ri + R_[j];
+          if ((xs - x_[j]).squaredNorm() < cut * cut) {
+            nb_.push_back(j);
+            sh_.push_back(s);
+          }
+        }
+      });
+      off_[i + 1] = static_cast<std::uint32_t>(nb_.size());
+    }
+  }
+  for (std::size_t c = 0; c < (grid_.hashed() ? 0 : ncell); ++c) {
     const std::uint32_t cb = cell_start_[c], ce = cell_start_[c + 1];
     for (std::uint32_t i = cb; i < ce; ++i) {
       const Vec<D> xi = x_[i];

@@ -42,6 +42,26 @@ OverlapGrid<D>::OverlapGrid(const Vec<D>& lower, const Vec<D>& upper, const std:
     : lower_(lower), upper_(upper), length_(upper - lower), periodic_(periodic) {
   double cell = (min_cell > 0.0 && std::isfinite(min_cell)) ? min_cell : length_.maxCoeff();
   const double cap = static_cast<double>(std::max<std::size_t>(4 * expected, std::size_t{1} << 12));
+  // A mostly empty domain (more than eight times the cells the grains need): cells of min_cell in a
+  // hash table of about 4 buckets per grain (as engine/grid.hpp), instead of cells coarsened until
+  // each holds many grains.
+  {
+    double natural = 1.0;
+    for (int k = 0; k < D; ++k) natural *= std::max(1.0, std::min(length_[k] / cell, 1e15));
+    if (natural > 8.0 * cap) {
+      hashed_ = true;
+      std::uint64_t b = 1;
+      while (static_cast<double>(b) < cap) b *= 2;
+      mask_ = b - 1;
+      for (int k = 0; k < D; ++k) {
+        n_[k] = std::max<std::int64_t>(1, static_cast<std::int64_t>(std::min(length_[k] / cell, 1e15)));
+        cell_[k] = length_[k] / static_cast<double>(n_[k]);
+      }
+      head_.assign(b, -1);
+      entries_.reserve(expected);
+      return;
+    }
+  }
   for (;;) {
     double total = 1.0;
     for (int k = 0; k < D; ++k) {
@@ -77,6 +97,14 @@ std::array<std::int64_t, D> OverlapGrid<D>::cell_of(const Vec<D>& x) const {
 
 template <int D>
 std::size_t OverlapGrid<D>::flat(const std::array<std::int64_t, D>& c) const {
+  if (hashed_) {  // a multiply-xorshift mix of the coordinates (engine/grid.hpp's bucket)
+    std::uint64_t h = 0;
+    for (int k = 0; k < D; ++k) h = (h ^ static_cast<std::uint64_t>(c[k])) * 0x9E3779B97F4A7C15ull;
+    h ^= h >> 31;
+    h *= 0xBF58476D1CE4E5B9ull;
+    h ^= h >> 27;
+    return static_cast<std::size_t>(h & mask_);
+  }
   std::size_t f = 0;
   for (int k = D - 1; k >= 0; --k) f = f * static_cast<std::size_t>(n_[k]) + static_cast<std::size_t>(c[k]);
   return f;

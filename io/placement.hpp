@@ -67,6 +67,8 @@ class OverlapGrid {
   Vec<D> lower_, upper_, length_, cell_;
   std::array<bool, D> periodic_;
   std::array<std::int64_t, D> n_{};
+  bool hashed_ = false;       // a mostly empty domain: cells of min_cell stored in hash buckets
+  std::uint64_t mask_ = 0;
   std::vector<std::int64_t> head_;
   std::vector<Entry> entries_;
 };

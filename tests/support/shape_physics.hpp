@@ -127,6 +127,7 @@ inline double hertz_overlap(double F, double R) {
 struct Track final {
   std::vector<double> t;
   std::vector<std::vector<double>> x;  // per snapshot, the grain's coordinates
+  std::vector<std::vector<double>> v;  // ... and velocity
 };
 template <int D>
 struct Tracker final : Observer<D> {
@@ -135,6 +136,7 @@ struct Tracker final : Observer<D> {
   void on_snapshot(const Snapshot<D>& s) override {
     track.t.push_back(s.time);
     track.x.push_back(std::vector<double>(s.x[0].data(), s.x[0].data() + D));
+    track.v.push_back(std::vector<double>(s.v[0].data(), s.v[0].data() + D));
   }
 };
 

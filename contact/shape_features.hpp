@@ -80,6 +80,88 @@ bool closing_now(const Vec<D>& v, const Vec<D>& g, const Vec<D>& n) {
   return vn < 0.0 || (vn == 0.0 && g.dot(n) < 0.0);
 }
 
+// The earliest closing of a feature decided on its direct gap h(t) (distance minus R, computed from
+// the position at t), with the polynomial p (same roots, same sign) used only to cut [0, limit] into
+// pieces on which p is monotone (contact/poly.hpp), hence holds at most one root of h. Needed where
+// p is a product whose second factor can vanish too: the rim torus (d_near^2 - R^2)(d_far^2 - R^2)
+// for a path near the axis of a rim no wider than the particle, the lateral cone
+// (rho - c - k z)(rho + c + k z) near the apex of its offset. There p's values near a touch are
+// products of two small numbers, below p's round-off, while h resolves them; a root of p where h
+// is clearly open (a spurious root of the rounded p) is not taken. On each piece [a, b]:
+//  * h(a) <= 0 and p falls over the piece (the gap already closed and closing; t = 0 only with now_ok),
+//  * h(a) > 0 >= h(b): the root, by bisection on h,
+//  * h(a), h(b) > 0 but b a local minimum of p within p's round-off of zero (a grazing dip that p
+//    cannot resolve): a golden-section search for h's minimum over the two pieces around b, then
+//    bisection if it dips to <= 0.
+// valid(t): the feature exists at the touch (foot point on the finite part).
+template <class H, class Valid>
+double closing_on_pieces(Poly p, H&& h, Valid&& valid, double limit, bool now_ok) {
+  p.trim();
+  if (p.n == 0) return kNever;
+  const double hi = std::min(limit, root_bound(p) * 1.0000001 + 1e-300);
+  if (!(hi > 0.0)) return kNever;
+  double e[Poly::kMax + 2];
+  e[0] = 0.0;
+  const int m = poly_detail::sign_changes(p.derivative(), 0.0, hi, e + 1);
+  e[m + 1] = hi;
+  auto bisect = [&](double a, double b) {  // h(a) > 0 >= h(b)
+    for (int k = 0; k < 200; ++k) {
+      const double mid = 0.5 * (a + b);
+      if (!(mid > a && mid < b)) break;
+      if (h(mid) > 0.0) a = mid;
+      else b = mid;
+    }
+    return b;
+  };
+  auto roundoff = [&](double t) {  // p's evaluation error bound at t, with a margin
+    double s = 0.0, tk = 1.0;
+    for (int k = 0; k <= p.n; ++k, tk *= std::abs(t)) s += std::abs(p.c[k]) * tk;
+    return 1024.0 * std::numeric_limits<double>::epsilon() * s;
+  };
+  const Poly dp = p.derivative();
+  double ha = h(0.0);
+  for (int i = 0; i <= m; ++i) {
+    const double a = e[i], b = e[i + 1];
+    const double hb = h(b);
+    if (ha <= 0.0) {
+      // Closed at a: an event if the piece closes further (p' < 0 inside: the sign of the slope
+      // from the polynomial, not from h's round-off noise around zero).
+      if (dp(0.5 * (a + b)) < 0.0 && (a > 0.0 || now_ok) && valid(a)) return a;
+    } else if (hb <= 0.0) {
+      const double r = bisect(a, b);
+      if (valid(r)) return r;
+    } else if (i < m && dp(0.5 * (a + b)) < 0.0 && std::abs(p(b)) <= roundoff(b)) {
+      // b is a local minimum of p within its round-off of zero: search the two pieces around it.
+      double lo = a, up = e[i + 2];
+      const double g = 0.6180339887498949;
+      double c = up - g * (up - lo), d = lo + g * (up - lo), hc = h(c), hd = h(d);
+      for (int k = 0; k < 120 && hc > 0.0 && hd > 0.0; ++k) {
+        if (hc < hd) {
+          up = d;
+          d = c;
+          hd = hc;
+          c = up - g * (up - lo);
+          hc = h(c);
+        } else {
+          lo = c;
+          c = d;
+          hc = hd;
+          d = lo + g * (up - lo);
+          hd = h(d);
+        }
+        if (!(c < d)) break;
+      }
+      const double tm = hc <= 0.0 ? c : (hd <= 0.0 ? d : kNever);
+      if (tm < kNever) {
+        const double r = bisect(a, tm);
+        if (valid(r)) return r;
+      }
+    }
+    ha = hb;
+  }
+  return kNever;
+}
+
 namespace feature {
 
 // The earliest closing time of a point feature (a corner, the apex of a cone, the end of a 2D
@@ -127,7 +209,12 @@ double rim(const Flight<D>& f, const Vec<D>& n, double A, double R, double limit
   const Poly r2 = f.norm2();
   const Poly rho2 = f.perp(n).norm2();
   const Poly q = r2 + Poly{A * A - R * R};
-  return earliest_closing(q * q - rho2 * (4.0 * A * A), limit, [&](double t) { return t > 0.0 || now_ok; });
+  auto h = [&](double t) {  // the distance to the circle minus R
+    const Vec<D> r = f.at(t);
+    const double z = r.dot(n);
+    return std::hypot((r - z * n).norm() - A, z) - R;
+  };
+  return closing_on_pieces(q * q - rho2 * (4.0 * A * A), h, [](double) { return true; }, limit, now_ok);
 }
 
 // The lateral surface of a frustum: the surface of revolution about unit axis a (through the
@@ -155,17 +242,26 @@ double lateral(const Flight<D>& f, const Vec<D>& a, double r1, double r2, double
   const Poly p = (rho2 - cz * cz) * static_cast<double>(side);
   if (one_sided) return earliest_closing(p, limit, [&](double t) { return t > 0.0 || now_ok; });
   const double ell = std::sqrt(L * L + dr * dr);
-  return earliest_closing(p, limit, [&](double t) {
-    if (t == 0.0 && !now_ok) return false;
+  // Meridian coordinates at t: the foot parameter tau on the generator and the signed distance sigma
+  // from the generator line (> 0 outside).
+  auto meridian = [&](double t, double& tau, double& sigma) {
     const Vec<D> r = f.at(t);
     const double zt = r.dot(a);
     const double rho = (r - zt * a).norm();
-    if (c + k * zt < 0.0) return false;  // the other nappe
-    const double tau = (zt * L + (rho - r1) * dr) / (ell * ell);
-    if (!(tau >= 0.0 && tau <= 1.0)) return false;
-    const double sigma = (L * (rho - r1) - dr * zt) / ell;  // signed distance from the generator line
-    return side * sigma >= 0.0;
-  });
+    tau = (zt * L + (rho - r1) * dr) / (ell * ell);
+    sigma = (L * (rho - r1) - dr * zt) / ell;
+  };
+  auto h = [&](double t) {  // distance from the offset line on this side (> 0: clear of it)
+    double tau, sigma;
+    meridian(t, tau, sigma);
+    return side * sigma - R;
+  };
+  auto valid = [&](double t) {  // the foot point on the segment, the particle on this side
+    double tau, sigma;
+    meridian(t, tau, sigma);
+    return tau >= 0.0 && tau <= 1.0 && side * sigma >= 0.0;
+  };
+  return closing_on_pieces(p, h, valid, limit, now_ok);
 }
 
 }  // namespace feature

@@ -190,6 +190,19 @@ TEST(ConeImpact, ClosedFormFlights) {
   // R = 0.25 does not fit through the outlet: it hits the rim torus (circle radius 0.2 at z = 1)
   // where sqrt(0.2^2 + (z - 1)^2) = 0.25: z = 1.15, t = 1.85.
   EXPECT_NEAR(hopper.impact_time(Vec<3>(0, 0, 3), Vec<3>(0, 0, -1), Vec<3>::Zero(), 0.25, 0.0, kNever), 1.85, 1e-13);
+  // The same two paths eps off the axis (the torus and the offset cone are then products of two
+  // small factors near the touch; closing_on_pieces decides on the distance): the touch moves by
+  // O(eps) (first order: the apex case reaches rho = c + k z = eps, so 1 eps earlier in z).
+  const Vec<3> d = Vec<3>(0.3, 0.7, 0.0).normalized();
+  for (double eps : {1e-15, 1e-12, 1e-9, 1e-6}) {
+    EXPECT_NEAR(cone.impact_time(Vec<3>(eps * d + Vec<3>(0, 0, 2)), Vec<3>(0, 0, -1), Vec<3>::Zero(), R, 0.0, kNever),
+                2.0 - R * std::sqrt(2.0) - eps, 1e-13 + 1e-3 * eps)
+        << eps;
+    EXPECT_NEAR(
+        hopper.impact_time(Vec<3>(eps * d + Vec<3>(0, 0, 3)), Vec<3>(0, 0, -1), Vec<3>::Zero(), 0.25, 0.0, kNever),
+        1.85, 1e-13 + 10.0 * eps)
+        << eps;
+  }
 }
 
 // ---- engines ---------------------------------------------------------------------------------
@@ -221,6 +234,18 @@ TEST(ConeEngines, ElasticEdmGasInAClosedHopperKeepsItsEnergyAndStaysInside) {
   EXPECT_GT(r.counts.wall, 500u);
   std::printf("EDM gas in a closed hopper: %llu wall collisions, energy ratio - 1 = %.3g\n",
               static_cast<unsigned long long>(r.counts.wall), test::kinetic<3>(r.v) / test::kinetic<3>(s.v) - 1.0);
+}
+
+// Grains draining through an open hopper (outlet wider than a grain) onto the box's floor and
+// bouncing back onto its outside: rims, both faces, under gravity; 3D and 2D; and a full cone
+// with its apex down (an apex point).
+TEST(ConeEngines, ElasticEdmGasThroughAnOpenHopperKeepsItsEnergy) {
+  auto hopper = std::make_shared<ConeWall<3>>(Vec<3>(0, 0, -0.2), Vec<3>(0, 0, 1), 0.1, 0.45, 0.5);
+  test::expect_edm_gas_around<3>(hopper, 80, 0.03, 12, "hopper 3D");
+  auto hopper2 = std::make_shared<ConeWall<2>>(Vec<2>(0, -0.2), Vec<2>(0, 1), 0.1, 0.45, 0.5);
+  test::expect_edm_gas_around<2>(hopper2, 40, 0.03, 13, "hopper 2D");
+  auto funnel = std::make_shared<ConeWall<3>>(Vec<3>(0.05, 0, -0.3), Vec<3>(0.1, 0.2, 1.0), 0.0, 0.4, 0.6);
+  test::expect_edm_gas_around<3>(funnel, 80, 0.03, 14, "full cone, apex down");
 }
 
 // A grain at rest inside a cone lying on its side: the axis is tilted up by the half-angle alpha

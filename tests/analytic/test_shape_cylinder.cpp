@@ -253,6 +253,31 @@ TEST(CylinderImpact, RoundOffRulesAtContact) {
   EXPECT_NEAR(tube.impact_time(Vec<3>(1, 0, -2), Vec<3>(0, 0, 1), Vec<3>::Zero(), R, 0.0, kNever), 2.0 - R, 1e-14);
 }
 
+// Paths along (or within eps of) the axis of a tube no wider than the particle: the rim torus's
+// quartic is then a product of two small factors, below its own round-off near the touch
+// (closing_on_pieces decides on the distance itself). Closed forms:
+//  * R = 0.25 > A = 0.2, falling from z = 3 at v = -1 with g = -0.3 onto the top rim (z = 1): on the
+//    axis the rim is at distance sqrt(A^2 + (z - 1)^2) = R at z = 1.15: 0.15 t^2 + t = 1.85 (within
+//    eps, the touch moves by O(eps));
+//  * R = A = 0.2 rising along the axis at speed 1 from z = -3 towards the bottom rim (z = 0), eps off
+//    the axis: it passes within A - eps of the circle, touching when (A - eps)^2 + z^2 = A^2,
+//    z = -sqrt(2 A eps - eps^2) (a grazing touch: tolerance from its conditioning, 1e-9).
+TEST(CylinderImpact, PathsAlongTheAxisOfANarrowTubeTouchItsRim) {
+  const CylinderWall<3> tube(Vec<3>::Zero(), Vec<3>(0, 0, 1), 0.2, 1.0);
+  const Vec<3> d = Vec<3>(0.3, 0.7, 0.0).normalized();
+  const double t_fall = (-1.0 + std::sqrt(1.0 + 4.0 * 0.15 * 1.85)) / 0.3;
+  for (double eps : {0.0, 1e-15, 1e-12, 1e-9, 1e-6}) {
+    const double t = tube.impact_time(Vec<3>(eps * d + Vec<3>(0, 0, 3)), Vec<3>(0, 0, -1), Vec<3>(0, 0, -0.3), 0.25,
+                                      0.0, kNever);
+    EXPECT_NEAR(t, t_fall, 1e-13 + 10.0 * eps) << eps;
+  }
+  for (double eps : {1e-13, 1e-11, 1e-9, 1e-7, 1e-5}) {
+    const double t =
+        tube.impact_time(Vec<3>(eps * d + Vec<3>(0, 0, -3)), Vec<3>(0, 0, 1), Vec<3>::Zero(), 0.2, 0.0, kNever);
+    EXPECT_NEAR(t, 3.0 - std::sqrt(2.0 * 0.2 * eps - eps * eps), 1e-9) << eps;
+  }
+}
+
 // ---- engines ---------------------------------------------------------------------------------
 
 // An elastic EDM gas in a closed tube: an open tube (length 2, radius 1, touched from both sides)
@@ -283,6 +308,13 @@ TEST(CylinderEngines, ElasticEdmGasInAClosedTubeKeepsItsEnergyAndStaysInside) {
   EXPECT_GT(r.counts.wall, 500u);
   std::printf("EDM gas in a closed tube: %llu wall collisions, energy ratio - 1 = %.3g, worst overlap %.3g\n",
               static_cast<unsigned long long>(r.counts.wall), ke1 / ke0 - 1.0, worst);
+}
+
+// Grains on both sides of a tilted open tube in a closed box under gravity (rims, both faces).
+TEST(CylinderEngines, ElasticEdmGasAroundATiltedOpenTubeKeepsItsEnergy) {
+  const Vec<3> a = Vec<3>(0.3, -0.2, 1.0).normalized();
+  auto tube = std::make_shared<CylinderWall<3>>(Vec<3>(-0.45 * a), a, 0.25, 0.9);
+  test::expect_edm_gas_around<3>(tube, 80, 0.03, 11, "tilted tube");
 }
 
 // The same in 2D: a circle with gravity; kinetic plus potential energy is conserved.

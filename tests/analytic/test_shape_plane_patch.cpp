@@ -277,6 +277,21 @@ void check_silo() {
 TEST(BoundedPlaneEngines, ElasticEdmGasOverASiloFloorWithAHoleKeepsItsEnergy3D) { check_silo<3>(); }
 TEST(BoundedPlaneEngines, ElasticEdmGasOverAFloorWithAGapKeepsItsEnergy2D) { check_silo<2>(); }
 
+// Grains around a tilted rectangle patch, a tilted disk patch and a plane with a rectangular hole,
+// under gravity in a closed box (faces from both sides, edges, corners, rims).
+TEST(BoundedPlaneEngines, ElasticEdmGasAroundPatchesAndHolesKeepsItsEnergy) {
+  const Vec<3> n = Vec<3>(0.2, 0.1, 1.0).normalized();
+  test::expect_edm_gas_around<3>(std::make_shared<BoundedPlane<3>>(Vec<3>(0, 0, -0.1), n, Vec<3>(1, 0.3, 0), 0.3, 0.2),
+                                 80, 0.03, 15, "rectangle patch");
+  test::expect_edm_gas_around<3>(std::make_shared<BoundedPlane<3>>(Vec<3>(0.1, 0, 0), n, 0.3), 80, 0.03, 16,
+                                 "disk patch");
+  test::expect_edm_gas_around<3>(
+      std::make_shared<BoundedPlane<3>>(Vec<3>(0, 0, -0.1), n, Vec<3>(1, 0.3, 0), 0.15, 0.1, true), 80, 0.03, 17,
+      "plane with a rectangular hole");
+  test::expect_edm_gas_around<2>(std::make_shared<BoundedPlane<2>>(Vec<2>(0.05, 0), Vec<2>(0.2, 1.0), 0.3), 40, 0.03,
+                                 18, "2D segment");
+}
+
 // A grain at rest in the middle of a horizontal patch (a flat wall: R* = R): the static Hertz
 // overlap delta = (3 m g / (4 E* sqrt R))^(2/3).
 template <int D>

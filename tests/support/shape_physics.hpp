@@ -112,6 +112,55 @@ double kinetic(const std::vector<Vec<D>>& v) {
   return e;
 }
 
+// An elastic hard gas under gravity (g = 1 down) in the box [-0.6, 0.6]^D closed by planes, with
+// `shape` inside it (grains start anywhere clear of it, on both sides of a sheet). Over 10 s:
+// kinetic + potential energy is conserved to 1e-10 and no grain overlaps the shape by more than
+// round-off (every 0.1 s and at the end), with at least `min_hits` wall collisions.
+template <int D>
+void expect_edm_gas_around(std::shared_ptr<const WallShape<D>> shape, int n, double R, std::uint64_t seed,
+                           const char* name) {
+  System<D> s = hard_material_system<D>(Vec<D>::Constant(-0.6), Vec<D>::Constant(0.6));
+  s.gravity = -1.0 * up_axis<D>();
+  for (int k = 0; k < D; ++k) {
+    Vec<D> e = Vec<D>::Zero();
+    e[k] = 1.0;
+    s.walls.push_back(plane_wall<D>("lo", Vec<D>(-0.6 * e), e));
+    s.walls.push_back(plane_wall<D>("hi", Vec<D>(0.6 * e), Vec<D>(-e)));
+  }
+  s.walls.push_back(Wall<D>{"shape", 0, shape});
+  fill_gas<D>(s, n, R, [&](const Vec<D>& x) {
+    return (x.array().abs() < 0.6 - 1.5 * R).all() && shape->at(x, R, 0.0).gap > 0.5 * R;
+  }, seed);
+  struct Snap final : Observer<D> {
+    const WallShape<D>* shape = nullptr;
+    double R = 0.0, worst = 0.0;
+    bool wants_snapshots() const override { return true; }
+    void on_snapshot(const Snapshot<D>& sn) override {
+      for (const auto& x : sn.x) worst = std::max(worst, -shape->at(x, R, sn.time).gap);
+    }
+  } snap;
+  snap.shape = shape.get();
+  snap.R = R;
+  EdmSettings es;
+  es.end_time = 10.0;
+  es.snapshot_interval = 0.1;
+  const RunResult<D> r = run_edm<D>(s, es, QueueKind::Calendar, {&snap});
+  ASSERT_EQ(r.status, "ok") << name << ": " << r.message;
+  auto energy = [&](const std::vector<Vec<D>>& x, const std::vector<Vec<D>>& v) {
+    double e = 0.0;
+    for (std::size_t i = 0; i < x.size(); ++i) e += 0.5 * v[i].squaredNorm() - s.gravity.dot(x[i]);
+    return e;
+  };
+  const double ratio = energy(r.x, r.v) / energy(s.x, s.v);
+  std::printf("EDM gas around a %s (%s): %zu grains, %llu wall collisions, energy ratio - 1 = %.3g, worst overlap %.3g\n",
+              shape->kind(), name, s.size(), static_cast<unsigned long long>(r.counts.wall), ratio - 1.0,
+              std::max(snap.worst, r.max_overlap));
+  EXPECT_NEAR(ratio, 1.0, 1e-10) << name;
+  EXPECT_LT(snap.worst, 1e-12) << name;
+  EXPECT_LT(r.max_overlap, 1e-12) << name;
+  EXPECT_GT(r.counts.wall, 500u) << name;
+}
+
 // E* of the grain on a wall of its own material: 1/((1 - nu^2)/E + (1 - nu^2)/E).
 inline double estar_same() { return kYoung / (2.0 * (1.0 - kPoisson * kPoisson)); }
 template <int D>

@@ -205,6 +205,45 @@ TEST(ConeImpact, ClosedFormFlights) {
   }
 }
 
+// The rest of the interface on hand-made points.
+TEST(ConeShape, GeometryVelocityBoundsAndNormals) {
+  const double R = 0.1;
+  // 45 degrees: rho = 0.2 + z for z in [0, 0.5]; turning at 2 rad/s about +z.
+  const ConeWall<3> cone(Vec<3>::Zero(), Vec<3>(0, 0, 1), 0.2, 0.7, 0.5, 2.0);
+  // A point at rho = 0.2 + 0.25 - d sqrt 2 / ... : take the foot (0.45, 0, 0.25) and go d = 0.05
+  // along the inward normal (-1, 0, 1)/sqrt 2.
+  const Vec<3> n(-1.0 / std::sqrt(2.0), 0, 1.0 / std::sqrt(2.0));
+  const Vec<3> foot(0.45, 0, 0.25);
+  WallPoint<3> c = cone.at(Vec<3>(foot + 0.05 * n), R, 0.0);
+  EXPECT_NEAR(c.gap, 0.05 - R, 1e-15);
+  EXPECT_LT((c.normal - n).norm(), 1e-14);
+  EXPECT_LT((c.velocity - Vec<3>(0, 2.0 * 0.45, 0)).norm(), 1e-14);  // 2 z x (0.45, 0, 0.25)
+  c = cone.at(Vec<3>(foot - 0.05 * n), R, 0.0);  // the outside: the same distance
+  EXPECT_NEAR(c.gap, 0.05 - R, 1e-15);
+  EXPECT_LT((c.normal + n).norm(), 1e-14);
+  // Above the wide end, on the axis at z = 1: in the meridian plane the nearest point of the
+  // generator (0, 0.2)-(0.5, 0.7) is its foot at tau = (1 * 0.5 - 0.2 * 0.5) / 0.5 = 0.8, (z, rho) =
+  // (0.4, 0.6), sqrt(0.6^2 + 0.6^2) away (nearer than the rim, sqrt(0.7^2 + 0.5^2)).
+  EXPECT_NEAR(cone.at(Vec<3>(0, 0, 1.0), R, 0.0).gap, std::hypot(0.6, 0.6) - R, 1e-15);
+  // Below the narrow end on the axis at z = -1: tau < 0, the rim (0, 0.2) is nearest.
+  EXPECT_NEAR(cone.at(Vec<3>(0, 0, -1.0), R, 0.0).gap, std::hypot(1.0, 0.2) - R, 1e-15);
+  Vec<3> lo, hi;
+  EXPECT_TRUE(cone.bounds(lo, hi));
+  EXPECT_LT((lo - Vec<3>(-0.7, -0.7, 0)).norm(), 1e-15);
+  EXPECT_LT((hi - Vec<3>(0.7, 0.7, 0.5)).norm(), 1e-15);
+  EXPECT_DOUBLE_EQ(cone.max_speed(), 1.4);
+  EXPECT_TRUE(cone.moving());
+  EXPECT_TRUE(cone.has_normal(Vec<3>(0, 0, 1), 1e-12));
+  EXPECT_STREQ(cone.kind(), "cone");
+  EXPECT_NE(cone.describe().find("rotating"), std::string::npos);
+  // 2D: the two mirrored segments.
+  const ConeWall<2> v(Vec<2>::Zero(), Vec<2>(0, 1), 0.2, 0.7, 0.5);
+  EXPECT_NEAR(v.at(Vec<2>(-0.45, 0.25) + 0.05 * Vec<2>(1, 1) / std::sqrt(2.0), R, 0.0).gap, 0.05 - R, 1e-15);
+  EXPECT_NEAR(v.at(Vec<2>(0.45, 0.25) + 0.05 * Vec<2>(-1, 1) / std::sqrt(2.0), R, 0.0).gap, 0.05 - R, 1e-15);
+  EXPECT_THROW(ConeWall<3>(Vec<3>::Zero(), Vec<3>(0, 0, 1), 0.0, 0.0, 1.0), std::invalid_argument);
+  EXPECT_THROW(ConeWall<3>(Vec<3>::Zero(), Vec<3>(0, 0, 1), 0.2, 0.3, 0.0), std::invalid_argument);
+}
+
 // ---- engines ---------------------------------------------------------------------------------
 
 // A hopper (45 degrees: r = 0.3 at z = 0 up to 0.8 at z = 0.5) closed by two planes: an elastic

@@ -278,6 +278,53 @@ TEST(CylinderImpact, PathsAlongTheAxisOfANarrowTubeTouchItsRim) {
   }
 }
 
+// The rest of the interface on hand-made points: gaps and normals, surface velocity of a turning
+// drum (omega axis x (q - point) at the contact point q), bounds, speeds, normals, invalid input.
+TEST(CylinderShape, GeometryVelocityBoundsAndNormals) {
+  const double R = 0.1;
+  const CylinderWall<3> drum(Vec<3>::Zero(), Vec<3>(0, 0, 2), 1.0, 0.0, true, 2.0);  // axis normalized
+  WallPoint<3> c = drum.at(Vec<3>(0.5, 0, 3), R, 0.0);
+  EXPECT_NEAR(c.gap, 1.0 - 0.5 - R, 1e-15);
+  EXPECT_LT((c.normal - Vec<3>(-1, 0, 0)).norm(), 1e-15);
+  EXPECT_LT((c.velocity - Vec<3>(0, 2, 0)).norm(), 1e-15);  // q = (1, 0, 3): 2 z x (1, 0, 0)
+  EXPECT_LT((drum.surface_velocity(Vec<3>(0.5, 0, 3), R, 0.0) - Vec<3>(0, 2, 0)).norm(), 1e-15);
+  EXPECT_DOUBLE_EQ(drum.max_speed(), 2.0);
+  EXPECT_TRUE(drum.moving());
+  EXPECT_STREQ(drum.kind(), "cylinder");
+  EXPECT_NE(drum.describe().find("infinite cylinder"), std::string::npos);
+  Vec<3> lo, hi;
+  EXPECT_FALSE(drum.bounds(lo, hi));
+  EXPECT_TRUE(drum.has_normal(Vec<3>(0.6, 0.8, 0), 1e-12));
+  EXPECT_FALSE(drum.has_normal(Vec<3>(0, 0, 1), 1e-12));
+  const CylinderWall<3> pipe(Vec<3>::Zero(), Vec<3>(0, 0, 1), 1.0, 0.0, false);
+  c = pipe.at(Vec<3>(0, 2, 0), R, 0.0);
+  EXPECT_NEAR(c.gap, 2.0 - 1.0 - R, 1e-15);
+  EXPECT_LT((c.normal - Vec<3>(0, 1, 0)).norm(), 1e-15);
+  EXPECT_NEAR(pipe.at(Vec<3>(0, 0.5, 0), R, 0.0).gap, 0.5 - 1.0 - R, 1e-15);  // wrong side: overlap
+  EXPECT_FALSE(pipe.moving());
+  // A tube: below its bottom end on the axis the nearest points are the rim, sqrt(1 + 1) away.
+  const CylinderWall<3> tube(Vec<3>::Zero(), Vec<3>(1, 0, 0), 1.0, 2.0);
+  c = tube.at(Vec<3>(-1, 0, 0), R, 0.0);
+  EXPECT_NEAR(c.gap, std::sqrt(2.0) - R, 1e-15);
+  EXPECT_NEAR(c.normal[0], -1.0 / std::sqrt(2.0), 1e-15);
+  // ... and from outside and inside of the wall the same distance: a sheet.
+  EXPECT_NEAR(tube.at(Vec<3>(1, 0, 1.3), R, 0.0).gap, 0.3 - R, 1e-15);
+  EXPECT_NEAR(tube.at(Vec<3>(1, 0, 0.7), R, 0.0).gap, 0.3 - R, 1e-15);
+  EXPECT_TRUE(tube.bounds(lo, hi));
+  EXPECT_LT((lo - Vec<3>(0, -1, -1)).norm(), 1e-15);
+  EXPECT_LT((hi - Vec<3>(2, 1, 1)).norm(), 1e-15);
+  EXPECT_TRUE(tube.has_normal(Vec<3>(1, 0, 0), 1e-12));  // at a rim
+  EXPECT_NE(tube.describe().find("open tube"), std::string::npos);
+  // 2D: a circle turning about its centre.
+  const CylinderWall<2> circle(Vec<2>(1, 1), Vec<2>::Zero(), 0.5, 0.0, true, -3.0);
+  const WallPoint<2> c2 = circle.at(Vec<2>(1, 1.2), R, 0.0);
+  EXPECT_NEAR(c2.gap, 0.5 - 0.2 - R, 1e-15);
+  EXPECT_LT((c2.normal - Vec<2>(0, -1)).norm(), 1e-15);
+  EXPECT_LT((c2.velocity - Vec<2>(1.5, 0)).norm(), 1e-15);  // q - centre = (0, 0.5): -3 (-0.5, 0)
+  EXPECT_THROW(CylinderWall<3>(Vec<3>::Zero(), Vec<3>(0, 0, 1), 0.0), std::invalid_argument);
+  EXPECT_THROW(CylinderWall<2>(Vec<2>::Zero(), Vec<2>::Zero(), 1.0, 2.0), std::invalid_argument);
+}
+
 // ---- engines ---------------------------------------------------------------------------------
 
 // An elastic EDM gas in a closed tube: an open tube (length 2, radius 1, touched from both sides)

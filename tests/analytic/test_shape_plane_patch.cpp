@@ -208,6 +208,51 @@ TEST(BoundedPlaneImpact, ClosedFormFlights) {
               2.0 - Vec<3>(0.7, 0.4, 0.0).norm() - R, 1e-14);
 }
 
+// The rest of the interface on hand-made points.
+TEST(BoundedPlaneShape, GeometryVelocityBoundsAndNormals) {
+  const double R = 0.1;
+  const Vec<3> z(0, 0, 1);
+  const BoundedPlane<3> table(Vec<3>(0, 0, 1), z, 0.5, false, 3.0);  // a turntable at height 1
+  WallPoint<3> c = table.at(Vec<3>(0.2, 0, 1.3), R, 0.0);  // over the face
+  EXPECT_NEAR(c.gap, 0.3 - R, 1e-15);
+  EXPECT_LT((c.normal - z).norm(), 1e-15);
+  EXPECT_LT((c.velocity - Vec<3>(0, 0.6, 0)).norm(), 1e-15);  // 3 z x (0.2, 0, 0)
+  EXPECT_LT((table.at(Vec<3>(0.2, 0, 0.7), R, 0.0).normal + z).norm(), 1e-15);  // from below
+  c = table.at(Vec<3>(0.8, 0, 1.4), R, 0.0);  // beyond the rim: (0.3, 0, 0.4) from (0.5, 0, 1)
+  EXPECT_NEAR(c.gap, 0.5 - R, 1e-15);
+  EXPECT_LT((c.normal - Vec<3>(0.6, 0, 0.8)).norm(), 1e-15);
+  Vec<3> lo, hi;
+  EXPECT_TRUE(table.bounds(lo, hi));
+  EXPECT_LT((lo - Vec<3>(-0.5, -0.5, 1)).norm(), 1e-15);
+  EXPECT_LT((hi - Vec<3>(0.5, 0.5, 1)).norm(), 1e-15);
+  EXPECT_DOUBLE_EQ(table.max_speed(), 1.5);
+  EXPECT_STREQ(table.kind(), "plane patch");
+  // A rectangle 2 x 1 (half-sizes 1, 0.5) along x: a corner and an edge.
+  const BoundedPlane<3> rect(Vec<3>::Zero(), z, Vec<3>(1, 0, 0.3), 1.0, 0.5);
+  EXPECT_NEAR(rect.at(Vec<3>(1.3, 0.9, 0), R, 0.0).gap, 0.5 - R, 1e-15);   // corner (1, 0.5, 0)
+  EXPECT_NEAR(rect.at(Vec<3>(0.2, -0.8, 0.4), R, 0.0).gap, 0.5 - R, 1e-15);  // edge y = -0.5
+  EXPECT_TRUE(rect.bounds(lo, hi));
+  EXPECT_LT((hi - Vec<3>(1, 0.5, 0)).norm(), 1e-15);
+  EXPECT_FALSE(rect.moving());
+  // A floor with a hole of radius 0.3 at the origin: in the hole the nearest point is on the rim.
+  const BoundedPlane<3> floor(Vec<3>::Zero(), z, 0.3, true);
+  EXPECT_NEAR(floor.at(Vec<3>(0.1, 0, 0), R, 0.0).gap, 0.2 - R, 1e-15);
+  EXPECT_NEAR(floor.at(Vec<3>(2, 0, -0.4), R, 0.0).gap, 0.4 - R, 1e-15);  // under the floor
+  EXPECT_FALSE(floor.bounds(lo, hi));
+  EXPECT_STREQ(floor.kind(), "plane with hole");
+  // A rectangular hole: from inside, out through the nearer edge.
+  const BoundedPlane<3> slot(Vec<3>::Zero(), z, Vec<3>(1, 0, 0), 1.0, 0.2, true);
+  EXPECT_NEAR(slot.at(Vec<3>(0.5, 0.1, 0), R, 0.0).gap, 0.1 - R, 1e-15);
+  EXPECT_TRUE(slot.has_normal(Vec<3>(0.6, 0.8, 0), 1e-12));
+  // 2D: a segment of half-length 0.5 on the line y = 0.
+  const BoundedPlane<2> seg(Vec<2>::Zero(), Vec<2>(0, 1), 0.5);
+  EXPECT_NEAR(seg.at(Vec<2>(0.8, 0.4), R, 0.0).gap, 0.5 - R, 1e-15);
+  EXPECT_NEAR(seg.at(Vec<2>(0.2, -0.4), R, 0.0).gap, 0.4 - R, 1e-15);
+  EXPECT_THROW(BoundedPlane<3>(Vec<3>::Zero(), z, 0.3, true, 1.0), std::invalid_argument);  // a turning hole
+  EXPECT_THROW(BoundedPlane<2>(Vec<2>::Zero(), Vec<2>(0, 1), 0.3, false, 1.0), std::invalid_argument);
+  EXPECT_THROW(BoundedPlane<3>(Vec<3>::Zero(), z, Vec<3>(0, 0, 2), 1.0, 1.0), std::invalid_argument);
+}
+
 // ---- engines ---------------------------------------------------------------------------------
 
 // A silo: a box (side planes) whose floor at height 0.4 is a plane with a hole (3D: a disk of

@@ -17,6 +17,8 @@
 // end and the 2D segment ends are points: quadratic / quartic); roots are taken only where the
 // foot point lies on the generator and on the right nappe, the earliest one refined on the gap
 // of at().
+// bracketed() is true: the engine passes its earliest event so far as the limit, and a flight that
+// cannot reach the surface before it (gap > |v| limit + |g| limit^2 / 2) costs one at() call.
 #pragma once
 
 #include <fmt/format.h>
@@ -80,6 +82,7 @@ class ConeWall final : public WallShape<D> {
     const WallPoint<D> c0 = at(x, R, 0.0);
     const bool approaching = closing_now(v, g, c0.normal);
     if (c0.gap <= 0.0 && approaching) return 0.0;
+    if (out_of_reach(c0.gap, v, g, limit)) return kNever;
     const Flight<D> f(x, v, g, point_);
     double t = std::min(feature::lateral(f, axis_, r1_, r2_, length_, -1, R, limit, approaching),
                         feature::lateral(f, axis_, r1_, r2_, length_, +1, R, limit, approaching));
@@ -93,6 +96,9 @@ class ConeWall final : public WallShape<D> {
 
   double max_speed() const override { return std::abs(rot_.omega) * std::max(r1_, r2_); }
   bool moving() const override { return rot_.active(); }
+  // The engine passes the earliest event found so far as `limit`: most flights are rejected by
+  // out_of_reach without a root search.
+  bool bracketed() const override { return true; }
   bool bounds(Vec<D>& lo, Vec<D>& hi) const override {
     const Vec<D> p1 = end();
     for (int k = 0; k < D; ++k) {

@@ -17,6 +17,8 @@
 // quadratic in t for a straight flight and a quartic under gravity; the rims of a tube are offset
 // tori (quartic, octic under gravity); roots are taken only where the foot point lies on the tube
 // (0 <= z <= length), and the earliest one is refined on the gap of at().
+// bracketed() is true: the engine passes its earliest event so far as the limit, and a flight that
+// cannot reach the surface before it (gap > |v| limit + |g| limit^2 / 2) costs one at() call.
 #pragma once
 
 #include <fmt/format.h>
@@ -113,6 +115,7 @@ class CylinderWall final : public WallShape<D> {
     const WallPoint<D> c0 = at(x, R, 0.0);
     const bool approaching = closing_now(v, g, c0.normal);
     if (c0.gap <= 0.0 && approaching) return 0.0;
+    if (out_of_reach(c0.gap, v, g, limit)) return kNever;
     const Flight<D> f(x, v, g, point_);
     double t;
     if (!finite_) {
@@ -132,6 +135,9 @@ class CylinderWall final : public WallShape<D> {
 
   double max_speed() const override { return std::abs(rot_.omega) * radius_; }
   bool moving() const override { return rot_.active(); }
+  // The engine passes the earliest event found so far as `limit`: most flights are rejected by
+  // out_of_reach without a root search.
+  bool bracketed() const override { return true; }
   bool bounds(Vec<D>& lo, Vec<D>& hi) const override {
     if (!finite_) return false;
     const Vec<D> p1 = point_ + length_ * axis_;

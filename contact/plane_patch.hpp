@@ -21,6 +21,8 @@
 // (offset torus: quartic / octic); a rectangle's edges (offset cylinders around segments:
 // quadratic / quartic) and corners (offset spheres: quadratic / quartic); 2D end points (circles).
 // The earliest accepted root, refined on the gap of at().
+// bracketed() is true: the engine passes its earliest event so far as the limit, and a flight that
+// cannot reach the surface before it (gap > |v| limit + |g| limit^2 / 2) costs one at() call.
 // kind(): "plane patch" or "plane with hole" ("plane" is the infinite plane of contact/plane.hpp).
 #pragma once
 
@@ -108,6 +110,7 @@ class BoundedPlane final : public WallShape<D> {
     const WallPoint<D> c0 = at(x, R, 0.0);
     const bool approaching = closing_now(v, g, c0.normal);
     if (c0.gap <= 0.0 && approaching) return 0.0;
+    if (out_of_reach(c0.gap, v, g, limit)) return kNever;
     const Flight<D> f(x, v, g, centre_);
     auto on_face = [&](const Vec<D>& r) { return in_region(Vec<D>(r - r.dot(normal_) * normal_)) != hole_; };
     double t = std::min(feature::face(f, normal_, +1, R, limit, approaching, on_face),
@@ -141,6 +144,9 @@ class BoundedPlane final : public WallShape<D> {
 
   double max_speed() const override { return std::abs(rot_.omega) * a_; }
   bool moving() const override { return rot_.active(); }
+  // The engine passes the earliest event found so far as `limit`: most flights are rejected by
+  // out_of_reach without a root search.
+  bool bracketed() const override { return true; }
   bool bounds(Vec<D>& lo, Vec<D>& hi) const override {
     if (hole_) return false;
     for (int k = 0; k < D; ++k) {

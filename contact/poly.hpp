@@ -82,18 +82,11 @@ inline double root_bound(const Poly& p) {
   return std::min(1.0 + m, kPolyHorizon);
 }
 
-namespace poly_detail {
-
-// Root of p on [a, b] with p(a) > 0 >= p(b) (or the mirror with `up`: p(a) < 0 <= p(b)), returned
-// on the side where the sign has changed (p(root) <= 0, resp. >= 0) and as early as round-off
-// allows: Illinois steps (Dowell & Jarratt 1971), with a bisection step whenever the bracket has not
-// halved over the last three steps, until the bracket is one ulp wide.
-inline double bracket_root(const Poly& p, double a, double fa, double b, double fb) {
-  const bool up = fa < 0.0;  // increasing through zero: work on -p
-  if (up) {
-    fa = -fa;
-    fb = -fb;
-  }
+// Root of f on [a, b] with f(a) > 0 >= f(b), returned on the f <= 0 side and as early as
+// round-off allows: Illinois steps (Dowell & Jarratt 1971), with a bisection step whenever the
+// bracket has not halved over the last three steps, until the bracket is one ulp wide (or f hits 0).
+template <class F>
+double safe_root(F&& f, double a, double fa, double b, double fb) {
   int side = 0;
   double width = b - a;
   for (int it = 0; it < 400; ++it) {
@@ -108,7 +101,7 @@ inline double bracket_root(const Poly& p, double a, double fa, double b, double 
       x = 0.5 * (a + b);
       if (!(x > a && x < b)) break;  // a and b adjacent doubles
     }
-    const double fx = up ? -p(x) : p(x);
+    const double fx = f(x);
     if (fx > 0.0) {
       a = x;
       fa = fx;
@@ -117,11 +110,20 @@ inline double bracket_root(const Poly& p, double a, double fa, double b, double 
     } else {
       b = x;
       fb = fx;
+      if (fx == 0.0) break;
       if (side == -1) fa *= 0.5;
       side = -1;
     }
   }
   return b;
+}
+
+namespace poly_detail {
+
+// Root of p on [a, b] where p changes sign (either way), on the side where it has changed.
+inline double bracket_root(const Poly& p, double a, double fa, double b, double fb) {
+  if (fa < 0.0) return safe_root([&](double t) { return -p(t); }, a, -fa, b, -fb);
+  return safe_root(p, a, fa, b, fb);
 }
 
 // The sign changes of p in the open interval (lo, hi), in increasing order, into out (at most p.n);

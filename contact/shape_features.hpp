@@ -89,10 +89,10 @@ bool closing_now(const Vec<D>& v, const Vec<D>& g, const Vec<D>& n) {
 // products of two small numbers, below p's round-off, while h resolves them; a root of p where h
 // is clearly open (a spurious root of the rounded p) is not taken. On each piece [a, b]:
 //  * h(a) <= 0 and p falls over the piece (the gap already closed and closing; t = 0 only with now_ok),
-//  * h(a) > 0 >= h(b): the root, by bisection on h,
+//  * h(a) > 0 >= h(b): the root, by safeguarded Illinois on h (safe_root),
 //  * h(a), h(b) > 0 but b a local minimum of p within p's round-off of zero (a grazing dip that p
 //    cannot resolve): a golden-section search for h's minimum over the two pieces around b, then
-//    bisection if it dips to <= 0.
+//    the root before it if it dips to <= 0.
 // valid(t): the feature exists at the touch (foot point on the finite part).
 template <class H, class Valid>
 double closing_on_pieces(Poly p, H&& h, Valid&& valid, double limit, bool now_ok) {
@@ -104,14 +104,8 @@ double closing_on_pieces(Poly p, H&& h, Valid&& valid, double limit, bool now_ok
   e[0] = 0.0;
   const int m = poly_detail::sign_changes(p.derivative(), 0.0, hi, e + 1);
   e[m + 1] = hi;
-  auto bisect = [&](double a, double b) {  // h(a) > 0 >= h(b)
-    for (int k = 0; k < 200; ++k) {
-      const double mid = 0.5 * (a + b);
-      if (!(mid > a && mid < b)) break;
-      if (h(mid) > 0.0) a = mid;
-      else b = mid;
-    }
-    return b;
+  auto bisect = [&](double a, double b) {  // h(a) > 0 >= h(b): safeguarded Illinois (poly.hpp)
+    return safe_root(h, a, h(a), b, h(b));
   };
   auto roundoff = [&](double t) {  // p's evaluation error bound at t, with a margin
     double s = 0.0, tk = 1.0;
@@ -160,6 +154,15 @@ double closing_on_pieces(Poly p, H&& h, Valid&& valid, double limit, bool now_ok
     ha = hb;
   }
   return kNever;
+}
+
+// Whether a particle whose gap is `gap` cannot reach the surface before `limit`: the gap of these
+// shapes is a distance (minus R), so it changes no faster than the centre moves, and the centre
+// moves at most |v| t + |g| t^2 / 2 in a time t. A cheap rejection before any root search.
+template <int D>
+bool out_of_reach(double gap, const Vec<D>& v, const Vec<D>& g, double limit) {
+  if (!(limit < kNever)) return false;
+  return gap > limit * (v.norm() + 0.5 * g.norm() * limit) * (1.0 + 1e-12);
 }
 
 namespace feature {
@@ -306,7 +309,7 @@ WallPoint<D> revolved_segment_point(const Vec<D>& p, const Vec<D>& a, double r1,
 // Moves an impact time t found on a feature's polynomial onto the shape's own gap function
 // gap(t) (the one the engines evaluate, from WallShape::at) to round-off: a bracket
 // [a, b] with gap(a) > 0 >= gap(b) is searched within a relative 1e-6 of t, by steps doubling
-// from a few ulps, then bisected to one ulp. Where none is found (a start-of-interval event with
+// from a few ulps, then narrowed to one ulp (safe_root). Where none is found (a start-of-interval event with
 // the gap already closed, or a tangent touch that the direct gap sees as a round-off miss), t is
 // kept.
 template <class Gap>
@@ -344,13 +347,7 @@ double refine_on_gap(Gap&& gap, double t) {
     }
     if (!found) return t;
   }
-  for (int k = 0; k < 200; ++k) {
-    const double m = 0.5 * (a + b);
-    if (!(m > a && m < b)) break;
-    if (gap(m) > 0.0) a = m;
-    else b = m;
-  }
-  return b;
+  return safe_root(gap, a, gap(a), b, gap(b));
 }
 
 }  // namespace matep

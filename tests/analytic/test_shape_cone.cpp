@@ -30,6 +30,18 @@ constexpr int kLong = 10000;
 constexpr double kTmax = 3.0;
 constexpr double kTol = 1e-10;
 
+// impact_time with a finite limit (the engine passes its earliest event so far; the shapes are
+// bracketed()): the same time when it lies before the limit, kNever when not.
+template <class S, int D>
+void expect_limit_consistent(const S& shape, const Vec<D>& x, const Vec<D>& v, const Vec<D>& g, double R, double t) {
+  if (t < kNever && t > 0.0) {
+    EXPECT_NEAR(shape.impact_time(x, v, g, R, 0.0, t * (1.0 + 1e-6)), t, 1e-12 * t);
+    EXPECT_EQ(shape.impact_time(x, v, g, R, 0.0, t * (1.0 - 1e-6)), kNever);
+  } else if (!(t < kNever)) {
+    EXPECT_EQ(shape.impact_time(x, v, g, R, 0.0, 2.0), kNever);
+  }
+}
+
 struct Shape {
   double r1, r2, L;
 };
@@ -81,6 +93,7 @@ void expect_case(const char* name, const Shape& sh, bool gravity, int n, std::ui
     const ImpactStats s = test::check_impacts<D>(
         [&](const Vec<D>& x, const Vec<D>& v, const Vec<D>& g, double R) {
           const double t = c.impact_time(x, v, g, R, 0.0, kNever);
+          expect_limit_consistent<decltype(c), D>(c, x, v, g, R, t);
           if (omega != 0.0) {  // the static cone's time (its axis renormalized: ulps)
             const ConeWall<D> still(c.point(), c.axis(), sh.r1, sh.r2, sh.L);
             const double ts = still.impact_time(x, v, g, R, 0.0, kNever);

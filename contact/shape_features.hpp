@@ -11,11 +11,12 @@
 // ed., "An Introduction to Ray Tracing", 1989, ch. 2; the torus quartic is the classical implicit
 // form of the torus). Along a flight r(t) = r0 + v t + g t^2 / 2 every coordinate is quadratic in
 // t, so each offset equation is a polynomial of degree 2 (point, line, cone; straight flight), 4
-// (the same under gravity; torus, straight) or 8 (torus under gravity), solved by
-// earliest_closing (contact/poly.hpp) with the sign chosen so that the polynomial is > 0 while
-// the sphere is clear of the feature. A root counts only where the feature is real: the foot
-// point on the finite part of a line or cone, the side of a thin sheet the particle is on, the
-// right nappe of a cone (accept predicates below). The shape's impact time is the earliest
+// (the same under gravity; torus, straight) or 8 (torus under gravity), with the sign chosen so
+// that it is > 0 while the sphere is clear of the feature: solved by earliest_closing
+// (contact/poly.hpp) for points, lines, faces and infinite cylinders; for rims and finite lateral
+// surfaces it only cuts time into monotone pieces and the feature's distance decides
+// (closing_on_pieces below). A root counts only where the feature is real: the foot point on the
+// finite part of a line or cone, the side of a thin sheet the particle is on. The shape's impact time is the earliest
 // accepted root over its features: the first touch of the whole surface is a touch of one of its
 // features at a point of that feature's valid region, so none is skipped.
 // now_ok: whether a closing at t = 0 may count. The shapes decide "now" on their own gap (an
@@ -204,9 +205,9 @@ double face(const Flight<D>& f, const Vec<D>& n, int side, double R, double limi
 // points +-A along the in-plane direction perpendicular to n): the offset torus
 // (|r|^2 + A^2 - R^2)^2 - 4 A^2 rho^2, rho^2 = |r_perp|^2. It equals
 // (d_near^2 - R^2)(d_far^2 - R^2) with d_near <= d_far the distances to the nearest and the
-// farthest point of the circle in the particle's meridian plane, so it is > 0 while the sphere is
-// clear of the circle and every closing root is a touch (or, in a spindle torus, R > A, a moment
-// when the sphere already overlaps).
+// farthest point of the circle in the particle's meridian plane: > 0 while the sphere is clear of
+// the circle. It isolates; the distance to the circle decides (closing_on_pieces), since near the
+// axis of a circle no wider than the sphere both factors are small.
 template <int D>
 double rim(const Flight<D>& f, const Vec<D>& n, double A, double R, double limit, bool now_ok) {
   const Poly r2 = f.norm2();
@@ -223,11 +224,12 @@ double rim(const Flight<D>& f, const Vec<D>& n, double A, double R, double limit
 // The lateral surface of a frustum: the surface of revolution about unit axis a (through the
 // origin of f) of the segment from (z, rho) = (0, r1) to (L, r2) in the meridian half-plane.
 // Its offsets at distance R are the cones rho = c + k z, k = (r2 - r1) / L, c = r1 + side R l / L
-// (l = sqrt(L^2 + (r2 - r1)^2); side +1 outside, -1 inside). Polynomial side (rho^2 - (c + k z)^2),
-// a root counting only on the right nappe (c + k z >= 0), with the foot point on the segment
-// (0 <= tau <= 1) and the particle on that side (signed distance from the generator line times
-// side >= 0). L = infinity (k = 0): an infinite cylinder of radius r1 (no region). 2D: the two
-// segments mirrored about the axis, rho = |the coordinate across the axis|.
+// (l = sqrt(L^2 + (r2 - r1)^2); side +1 outside, -1 inside). The polynomial side (rho^2 - (c + k z)^2)
+// isolates, the signed distance sigma from the generator line decides (closing_on_pieces): a touch
+// counts with the foot point on the segment (0 <= tau <= 1, which also keeps it off the other nappe)
+// and the particle on that side (side sigma >= 0). L = infinity (k = 0): an infinite cylinder of
+// radius r1 (no region). 2D: the two segments mirrored about the axis, rho = |the coordinate across
+// the axis|.
 // one_sided: an infinite cylinder with grains on one side only: every root counts (a particle on
 // the wrong side overlaps, by the signed-gap convention).
 template <int D>
@@ -309,9 +311,9 @@ WallPoint<D> revolved_segment_point(const Vec<D>& p, const Vec<D>& a, double r1,
 // Moves an impact time t found on a feature's polynomial onto the shape's own gap function
 // gap(t) (the one the engines evaluate, from WallShape::at) to round-off: a bracket
 // [a, b] with gap(a) > 0 >= gap(b) is searched within a relative 1e-6 of t, by steps doubling
-// from a few ulps, then narrowed to one ulp (safe_root). Where none is found (a start-of-interval event with
-// the gap already closed, or a tangent touch that the direct gap sees as a round-off miss), t is
-// kept.
+// from a few ulps, then narrowed to one ulp (safe_root). Where none is found (a start-of-interval
+// event with the gap already closed, or a tangent touch that the direct gap sees as a round-off
+// miss), t is kept.
 template <class Gap>
 double refine_on_gap(Gap&& gap, double t) {
   if (!(t > 0.0) || !std::isfinite(t)) return t;

@@ -5,9 +5,11 @@
 // section; straight and parabolic flights from anywhere around the sheet (it is touched from both
 // sides); a rotating cone (same geometry, same times); grazing flights that dip in or pass clear by
 // 1e-9 R. kQuick flights per case by default, kLong (10 000) in the *Long* test.
-// Engine-level physics: an elastic EDM gas in a closed hopper keeps its energy and stays inside; a
-// grain at rest inside a cone lying on its side has the static Hertz overlap (TDM and hybrid); a frictionless sphere slides down the inside of a cone with the
-// closed-form acceleration g cos(beta) along the generator (TDM and hybrid).
+// Engine-level physics: an elastic EDM gas in a closed hopper keeps its energy and stays inside, and
+// so does one draining through an open hopper (3D, 2D) or around a full cone under gravity; a grain
+// at rest inside a cone lying on its side has the static Hertz overlap (TDM and hybrid); a
+// frictionless sphere slides down the inside of a cone with the closed-form acceleration
+// g cos(beta) along the generator (TDM and hybrid).
 #include <gtest/gtest.h>
 
 #include <cmath>

@@ -413,7 +413,8 @@ void check_turntable(bool hybrid) {
   const double slope = (m * sxy - sx * sy) / (m * sxx - sx * sx);
   const double q = 0.4, l = r - delta, qq = q * r * r / (l * l);
   const double expected = Omega * qq / (1.0 + qq);
-  std::printf("turntable (%s): velocity turns at %.6f rad/s, closed form %.6f (rigid 2/7 Omega = %.6f), ratio - 1 = %.3g\n",
+  std::printf("turntable (%s): velocity turns at %.6f rad/s, closed form %.6f (rigid 2/7 Omega = %.6f), "
+              "ratio - 1 = %.3g\n",
               hybrid ? "hybrid" : "TDM", slope, expected, 2.0 / 7.0 * Omega, slope / expected - 1.0);
   EXPECT_NEAR(slope / expected, 1.0, 5e-3);
 }

@@ -152,7 +152,8 @@ void expect_edm_gas_around(std::shared_ptr<const WallShape<D>> shape, int n, dou
     return e;
   };
   const double ratio = energy(r.x, r.v) / energy(s.x, s.v);
-  std::printf("EDM gas around a %s (%s): %zu grains, %llu wall collisions, energy ratio - 1 = %.3g, worst overlap %.3g\n",
+  std::printf("EDM gas around a %s (%s): %zu grains, %llu wall collisions, energy ratio - 1 = %.3g, "
+              "worst overlap %.3g\n",
               shape->kind(), name, s.size(), static_cast<unsigned long long>(r.counts.wall), ratio - 1.0,
               std::max(snap.worst, r.max_overlap));
   EXPECT_NEAR(ratio, 1.0, 1e-10) << name;

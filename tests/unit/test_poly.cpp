@@ -84,8 +84,9 @@ TEST(Poly, DoubleAndClusteredRoots) {
 // Random degree-8 polynomials from known roots: up to 8 real roots (simple, near-double pairs
 // r +- 1e-2 whose dip is well above round-off, clusters 1e-3 apart), the rest positive quadratics,
 // some of them near misses (t - a)^2 + 9e-4, all in [-0.5, 2] (a scale where the monomial basis is
-// well conditioned; the shapes refine their roots against the direct gap). An exact double root is not representable in rounded
-// coefficients (it may become a complex pair), so exact touches are tested above on exact cases.
+// well conditioned; the shapes refine their roots against the direct gap). An exact double root is
+// not representable in rounded coefficients (it may become a complex pair), so exact touches are
+// tested above on exact cases.
 // The expected answer comes from the sorted roots and the sign of the leading coefficient.
 TEST(Poly, RandomPolynomialsFromKnownRoots) {
   std::mt19937_64 rng(11);

@@ -257,6 +257,17 @@ TEST(CylinderImpact, RoundOffRulesAtContact) {
   // Receding along -x: crosses the drum and hits the far side at 2 (1 - R) (chord through the axis).
   const double t = c.impact_time(x, Vec<3>(-1.0, 0.0, 0.0), Vec<3>::Zero(), R, 0.0, kNever);
   EXPECT_NEAR(t, 2.0 * (1.0 - R), 1e-14);
+  // Overlapping by round-off at the bottom of a horizontal drum, leaving at 1e-9 while gravity 10
+  // pulls it back: it turns at t = 1e-10 while still overlapping (the gap rises by v^2 / 2g =
+  // 5e-20 only): the event is the turn (gap_closing_time's rule for a gap that closes again).
+  const CylinderWall<3> drum(Vec<3>::Zero(), Vec<3>(1, 0, 0), 1.0);
+  const Vec<3> xb(0.0, 0.0, -(1.0 - R) - 1e-15);
+  EXPECT_NEAR(drum.impact_time(xb, Vec<3>(0, 0, 1e-9), Vec<3>(0, 0, -10.0), R, 0.0, kNever), 1e-10, 1e-16);
+  // ... and leaving at 1e-3 it opens the gap (by 5e-8) and falls back onto the wall: the root of
+  // -1e-15 + 1e-3 t - 5 t^2 = 0 after the turn, t = 2e-4. (The overlap 1e-15 is held to an ulp of
+  // 0.9, 1e-16, which moves t by 1e-16 / v = 1e-13.)
+  EXPECT_NEAR(drum.impact_time(xb, Vec<3>(0, 0, 1e-3), Vec<3>(0, 0, -10.0), R, 0.0, kNever),
+              (1e-3 + std::sqrt(1e-6 - 20.0 * 1e-15)) / 10.0, 2e-13);
   // A tube: a particle leaving through the open end is never stopped.
   const CylinderWall<3> tube(Vec<3>::Zero(), Vec<3>(0, 0, 1), 1.0, 1.0);
   EXPECT_EQ(tube.impact_time(Vec<3>(0, 0, 0.5), Vec<3>(0, 0, 1), Vec<3>::Zero(), R, 0.0, kNever), kNever);

@@ -111,6 +111,11 @@ class ConeWall final : public WallShape<D> {
   // The rims (or the apex) give every direction.
   bool has_normal(const Vec<D>& n, double tol) const override { return std::abs(n.norm() - 1.0) <= tol; }
 
+ Vec<D> anchor() const override { return point_; }
+  void tessellate(double, const Vec<D>&, const Vec<D>&, SurfaceMesh& out) const override {
+    revolve_band<D>(point_, axis_, r1_, r2_, 0.0, length_, out);
+  }
+
  private:
   // The end circle of radius A around the origin of f (a torus; a point when A = 0; two points in 2D).
   double end_time(const Flight<D>& f, double A, double R, double limit, bool now_ok) const {

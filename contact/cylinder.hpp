@@ -158,6 +158,26 @@ class CylinderWall final : public WallShape<D> {
     return true;
   }
 
+ Vec<D> anchor() const override { return point_; }
+  // The tube (an infinite one over the axial range of the box), or the circle in 2D.
+  void tessellate(double, const Vec<D>& lo, const Vec<D>& hi, SurfaceMesh& out) const override {
+    if constexpr (D == 2) {
+      const int n = 96;
+      const auto base = static_cast<std::uint32_t>(out.points.size());
+      std::vector<std::uint32_t> cell;
+      for (int k = 0; k < n; ++k) {
+        const double a = 2.0 * 3.14159265358979323846 * k / n;
+        out.points.push_back({point_[0] + radius_ * std::cos(a), point_[1] + radius_ * std::sin(a), 0.0});
+        cell.push_back(base + static_cast<std::uint32_t>(k));
+      }
+      cell.push_back(base);  // closed
+      out.cells.push_back(std::move(cell));
+    } else {
+      auto [s0, s1] = finite_ ? std::pair<double, double>{0.0, length_} : axial_range<D>(point_, axis_, lo, hi);
+      revolve_band<D>(point_, axis_, radius_, radius_, s0, s1, out);
+    }
+  }
+
  private:
   Vec<D> point_, axis_;
   double radius_ = 0.0, length_ = 0.0;

@@ -35,6 +35,7 @@
 #include <stdexcept>
 #include <string>
 
+#include "contact/plane.hpp"
 #include "contact/predict.hpp"
 #include "contact/shape_features.hpp"
 #include "contact/wall.hpp"
@@ -160,6 +161,85 @@ class BoundedPlane final : public WallShape<D> {
   }
   // The face gives +-normal, the edges, rims and corners every other direction.
   bool has_normal(const Vec<D>& n, double tol) const override { return std::abs(n.norm() - 1.0) <= tol; }
+  Vec<D> anchor() const override { return centre_; }
+
+  // The patch (a 48-gon or the rectangle; 2D: the segment), or the plane cut by the box minus the
+  // hole (3D: quads between the hole's edge and the box's cut along rays from the centre; 2D: the
+  // line's two pieces).
+  void tessellate(double, const Vec<D>& lo, const Vec<D>& hi, SurfaceMesh& out) const override {
+    auto push = [&](const Vec<D>& x) {
+      out.points.push_back({x[0], x[1], D == 3 ? x[D - 1] : 0.0});
+      return static_cast<std::uint32_t>(out.points.size() - 1);
+    };
+    if constexpr (D == 2) {
+      if (!hole_) {
+        out.cells.push_back({push(centre_ - a_ * u_), push(centre_ + a_ * u_)});
+        return;
+      }
+      const auto [s0, s1] = axial_range<D>(centre_, u_, lo, hi);
+      if (s0 < -a_) out.cells.push_back({push(centre_ + s0 * u_), push(centre_ - a_ * u_)});
+      if (s1 > a_) out.cells.push_back({push(centre_ + a_ * u_), push(centre_ + s1 * u_)});
+    } else {
+      // The hole's (or patch's) edge along the in-plane direction e, from the centre.
+      auto edge = [&](const Vec<D>& e) {
+        if (disk_) return Vec<D>(centre_ + a_ * e);
+        const double eu = std::abs(e.dot(u_)), ev = std::abs(e.dot(v_));
+        const double t = std::min(eu > 0.0 ? a_ / eu : 1e300, ev > 0.0 ? b_ / ev : 1e300);
+        return Vec<D>(centre_ + t * e);
+      };
+      std::vector<double> angles;
+      for (int k = 0; k < 64; ++k) angles.push_back(2.0 * 3.14159265358979323846 * k / 64);
+      if (!disk_)
+        for (const double su : {-1.0, 1.0})
+          for (const double sv : {-1.0, 1.0}) {
+            double a = std::atan2(sv * b_, su * a_);
+            if (a < 0.0) a += 2.0 * 3.14159265358979323846;
+            angles.push_back(a);
+          }
+      std::sort(angles.begin(), angles.end());
+      auto dir = [&](double a) { return Vec<D>(std::cos(a) * u_ + std::sin(a) * v_); };
+      if (!hole_) {
+        std::vector<std::uint32_t> cell;
+        for (const double a : angles) cell.push_back(push(edge(dir(a))));
+        out.cells.push_back(std::move(cell));
+        return;
+      }
+      // The plane's cut by the box (convex, around the centre when the hole lies in the domain).
+      SurfaceMesh cut;
+      PlaneWall<D>(centre_, normal_).tessellate(0.0, lo, hi, cut);
+      if (cut.cells.empty()) return;
+      std::vector<std::array<double, 2>> poly;  // in-plane coordinates about the centre
+      for (const auto k : cut.cells[0]) {
+        const Vec<D> q(cut.points[k][0], cut.points[k][1], cut.points[k][2]);
+        poly.push_back({(q - centre_).dot(u_), (q - centre_).dot(v_)});
+      }
+      auto outer = [&](double a) {  // where the ray at angle a leaves the polygon
+        const double ex = std::cos(a), ey = std::sin(a);
+        double best = 0.0;
+        for (std::size_t k = 0; k < poly.size(); ++k) {
+          const auto& A = poly[k];
+          const auto& B = poly[(k + 1) % poly.size()];
+          const double dx = B[0] - A[0], dy = B[1] - A[1];
+          const double det = ex * (-dy) - ey * (-dx);
+          if (det == 0.0) continue;
+          const double t = (A[0] * (-dy) - A[1] * (-dx)) / det;
+          const double s = (ex * A[1] - ey * A[0]) / det;
+          if (t > 0.0 && s >= 0.0 && s <= 1.0) best = std::max(best, t);
+        }
+        return Vec<D>(centre_ + best * dir(a));
+      };
+      const auto n = angles.size();
+      std::vector<std::uint32_t> in, ou;
+      for (const double a : angles) {
+        in.push_back(push(edge(dir(a))));
+        ou.push_back(push(outer(a)));
+      }
+      for (std::size_t k = 0; k < n; ++k) {
+        const std::size_t k1 = (k + 1) % n;
+        out.cells.push_back({in[k], ou[k], ou[k1], in[k1]});
+      }
+    }
+  }
 
  private:
   void set_frame(const Vec<D>& normal, const Vec<D>& u) {

@@ -14,6 +14,7 @@
 #include <cstdint>
 #include <limits>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include <Eigen/Geometry>
@@ -58,6 +59,53 @@ struct SurfaceMesh {
   std::vector<std::array<double, 3>> points;
   std::vector<std::vector<std::uint32_t>> cells;
 };
+
+// Pictures of surfaces of revolution for tessellate(): the band between the circles of radius r0
+// at point + s0 axis and r1 at point + s1 axis, as `segments` quads (3D); in 2D the two lines of the
+// axial section (-r, +r about the axis).
+template <int D>
+void revolve_band(const Vec<D>& point, const Vec<D>& axis, double r0, double r1, double s0, double s1, SurfaceMesh& out,
+                  int segments = 48) {
+  auto push = [&](const Vec<D>& x) {
+    out.points.push_back({x[0], x[1], D == 3 ? x[D - 1] : 0.0});
+    return static_cast<std::uint32_t>(out.points.size() - 1);
+  };
+  if constexpr (D == 2) {
+    const Vec<D> w(-axis[1], axis[0]);
+    for (const double side : {-1.0, 1.0})
+      out.cells.push_back({push(point + s0 * axis + side * r0 * w), push(point + s1 * axis + side * r1 * w)});
+  } else {
+    const Vec<D> u = (std::abs(axis[0]) < 0.9 ? Vec<D>(1, 0, 0) : Vec<D>(0, 1, 0)).cross(axis).normalized();
+    const Vec<D> v = axis.cross(u);
+    const auto base = static_cast<std::uint32_t>(out.points.size());
+    for (int k = 0; k < segments; ++k) {
+      const double a = 2.0 * 3.14159265358979323846 * k / segments;
+      const Vec<D> e = std::cos(a) * u + std::sin(a) * v;
+      push(point + s0 * axis + r0 * e);
+      push(point + s1 * axis + r1 * e);
+    }
+    for (int k = 0; k < segments; ++k) {
+      const auto k1 = static_cast<std::uint32_t>((k + 1) % segments);
+      const auto kk = static_cast<std::uint32_t>(k);
+      out.cells.push_back({base + 2 * kk, base + 2 * kk + 1, base + 2 * k1 + 1, base + 2 * k1});
+    }
+  }
+}
+
+// The range [s0, s1] of the axial coordinate (point + s axis) over the box [lo, hi]: an infinite
+// shape along the axis is drawn over it.
+template <int D>
+std::pair<double, double> axial_range(const Vec<D>& point, const Vec<D>& axis, const Vec<D>& lo, const Vec<D>& hi) {
+  double s0 = std::numeric_limits<double>::infinity(), s1 = -s0;
+  for (int m = 0; m < (1 << D); ++m) {
+    Vec<D> c;
+    for (int k = 0; k < D; ++k) c[k] = ((m >> k) & 1) ? hi[k] : lo[k];
+    const double s = (c - point).dot(axis);
+    s0 = std::min(s0, s);
+    s1 = std::max(s1, s);
+  }
+  return {s0, s1};
+}
 
 template <int D>
 class WallShape {

@@ -13,6 +13,9 @@
 
 #include <fmt/format.h>
 
+#include "contact/cone.hpp"
+#include "contact/cylinder.hpp"
+#include "contact/plane_patch.hpp"
 #include "io/placement.hpp"
 #include "io/scene_csv.hpp"
 #include "io/scene_toml.hpp"
@@ -446,6 +449,113 @@ struct Builder {
   }
 };
 
+// A nonzero direction at key k (made unit).
+template <int D>
+Vec<D> read_direction(const TableReader& t, std::string_view k) {
+  const Vec<D> n = to_vec<D>(t.numbers(k, D));
+  if (!(n.norm() > 0.0) || !n.allFinite()) t.fail(k, "must be a nonzero vector", t.need(k));
+  return n / n.norm();
+}
+
+// rotation = {angular_velocity = w}: rad/s about the shape's axis (2D: about its centre).
+inline double read_rotation(const TableReader& t) {
+  if (!t.has("rotation")) return 0.0;
+  const TableReader r = t.sub("rotation");
+  r.allow({"angular_velocity"});
+  return r.number("angular_velocity");
+}
+
+// The shape of a [wall.NAME] table (contact/plane.hpp, plane_patch.hpp, cylinder.hpp, cone.hpp).
+template <int D>
+std::shared_ptr<const WallShape<D>> read_wall_shape(const TableReader& t) {
+  const std::string type = t.string("type", {"plane", "cylinder", "cone"});
+  if (type == "plane") {
+    t.allow({"type", "point", "normal", "material", "oscillation", "patch", "hole", "rotation"});
+    const Vec<D> point = to_vec<D>(t.numbers("point", D));
+    const Vec<D> n = read_direction<D>(t, "normal");
+    if (t.has("patch") && t.has("hole"))
+      t.fail("hole", "a plane is either a patch or has a hole, not both (remove patch or hole)", t.need("hole"));
+    const char* region_key = t.has("patch") ? "patch" : (t.has("hole") ? "hole" : nullptr);
+    if (!region_key) {
+      if (t.has("rotation"))
+        t.fail("rotation", "an infinite plane cannot rotate (a turntable is a disk patch)", t.need("rotation"));
+      auto plane = std::make_shared<PlaneWall<D>>(point, n);
+      if (t.has("oscillation")) {  // p(t) = point + amplitude sin(2 pi frequency t)
+        const TableReader o = t.sub("oscillation");
+        o.allow({"amplitude", "frequency"});
+        plane->amplitude = to_vec<D>(o.numbers("amplitude", D));
+        plane->frequency = o.number("frequency", kPositive);
+      }
+      return plane;
+    }
+    if (t.has("oscillation"))
+      t.fail("oscillation", fmt::format("a plane with a {} cannot oscillate (only an infinite plane can)", region_key),
+             t.need("oscillation"));
+    const bool hole = std::string_view(region_key) == "hole";
+    const TableReader r = t.sub(region_key);
+    const double omega = read_rotation(t);
+    const std::string shape = r.string("shape", D == 3 ? std::initializer_list<std::string_view>{"disk", "rectangle"}
+                                                     : std::initializer_list<std::string_view>{"segment"});
+    if (shape == "rectangle") {
+      r.allow({"shape", "size", "direction"});
+      const auto size = r.numbers("size", 2);
+      if (!(size[0] > 0.0) || !(size[1] > 0.0)) r.fail("size", "must be two lengths > 0", r.need("size"));
+      const Vec<D> u = read_direction<D>(r, "direction");
+      if (std::abs(u.dot(n)) > 1.0 - 1e-9)
+        r.fail("direction", "must not be parallel to the plane's normal", r.need("direction"));
+      if (omega != 0.0) t.fail("rotation", "only a disk patch can rotate", t.need("rotation"));
+      return std::make_shared<BoundedPlane<D>>(point, n, u, 0.5 * size[0], 0.5 * size[1], hole);
+    }
+    // A disk (3D) or a segment (2D) around `point`.
+    r.allow({"shape", D == 3 ? "radius" : "length"});
+    const double radius = D == 3 ? r.number("radius", kPositive) : 0.5 * r.number("length", kPositive);
+    if (omega != 0.0 && (D == 2 || hole))
+      t.fail("rotation", "only a 3D disk patch can rotate (about its normal)", t.need("rotation"));
+    return std::make_shared<BoundedPlane<D>>(point, n, radius, hole, omega);
+  }
+  if (type == "cylinder") {
+    if constexpr (D == 3) t.allow({"type", "point", "axis", "radius", "length", "side", "material", "rotation"});
+    else t.allow({"type", "point", "radius", "side", "material", "rotation"});
+    const Vec<D> point = to_vec<D>(t.numbers("point", D));
+    Vec<D> axis = Vec<D>::Zero();
+    if constexpr (D == 3) axis = read_direction<D>(t, "axis");
+    const double radius = t.number("radius", kPositive);
+    const double length = D == 3 ? t.number_or("length", 0.0, kPositive) : 0.0;
+    if (t.has("length") && t.has("side"))
+      t.fail("side", "a finite cylinder (length given) is an open tube touched from both sides; side applies to an "
+                     "infinite one",
+             t.need("side"));
+    const bool inside = t.string_opt("side", {"inside", "outside"}).value_or("inside") == "inside";
+    return std::make_shared<CylinderWall<D>>(point, axis, radius, length, inside, read_rotation(t));
+  }
+  // cone
+  t.allow({"type", "point", "axis", "radii", "length", "material", "rotation"});
+  const Vec<D> point = to_vec<D>(t.numbers("point", D));
+  const Vec<D> axis = read_direction<D>(t, "axis");
+  const auto radii = t.numbers("radii", 2);
+  if (!(radii[0] >= 0.0) || !(radii[1] >= 0.0) || !(radii[0] + radii[1] > 0.0))
+    t.fail("radii", "must be two radii >= 0, not both 0", t.need("radii"));
+  const double length = t.number("length", kPositive);
+  return std::make_shared<ConeWall<D>>(point, axis, radii[0], radii[1], length, read_rotation(t));
+}
+
+// A bounded wall must lie within the domain (it would otherwise stand where no grain can be).
+template <int D>
+void check_walls_fit(const std::string& file, const System<D>& sys) {
+  for (const auto& w : sys.walls) {
+    Vec<D> lo, hi;
+    if (!w.geometry().bounds(lo, hi)) continue;
+    const double tol = 1e-9 * (sys.upper - sys.lower).norm();
+    for (int k = 0; k < D; ++k)
+      if (lo[k] < sys.lower[k] - tol || hi[k] > sys.upper[k] + tol)
+        fail(file, fmt::format("wall.{}", w.name),
+             fmt::format("the {} reaches {} along {}, outside the domain [{}, {}]; enlarge the domain or move the "
+                         "wall",
+                         w.geometry().kind(), lo[k] < sys.lower[k] - tol ? lo[k] : hi[k], kAxis[k], sys.lower[k],
+                         sys.upper[k]));
+  }
+}
+
 template <int D>
 void build_system(const TableReader& top, const TableReader& run, const fs::path& base_dir, Scene& scene) {
   System<D>& sys = scene.system.template emplace<System<D>>();
@@ -476,22 +586,16 @@ void build_system(const TableReader& top, const TableReader& run, const fs::path
 
   // [wall.NAME]
   for (const auto& [name, t] : named_tables(top, "wall")) {
-    t.allow({"type", "point", "normal", "material", "oscillation"});
-    t.string("type", {"plane"});
-    auto plane = std::make_shared<PlaneWall<D>>();
-    plane->point = to_vec<D>(t.numbers("point", D));
-    const Vec<D> n = to_vec<D>(t.numbers("normal", D));
-    if (!(n.norm() > 0.0)) t.fail("normal", "must be a nonzero vector", t.need("normal"));
-    plane->normal = n / n.norm();
-    const int material = material_index(t, sys.materials);
-    if (t.has("oscillation")) {  // p(t) = point + amplitude sin(2 pi frequency t)
-      const TableReader o = t.sub("oscillation");
-      o.allow({"amplitude", "frequency"});
-      plane->amplitude = to_vec<D>(o.numbers("amplitude", D));
-      plane->frequency = o.number("frequency", kPositive);
+    std::shared_ptr<const WallShape<D>> shape;
+    try {
+      shape = read_wall_shape<D>(t);
+    } catch (const std::invalid_argument& e) {  // a shape's own check of its parameters
+      fail(file, fmt::format("wall.{}", name), e.what());
     }
-    sys.walls.push_back(Wall<D>{name, material, std::move(plane)});
+    sys.walls.push_back(Wall<D>{name, 0, std::move(shape)});
+    sys.walls.back().material = material_index(t, sys.materials);
   }
+  check_walls_fit<D>(file, sys);
 
   // [particles.NAME]: read and validate every group, then place the groups with fixed positions
   // first (file groups, checked against each other; then lattice groups), then the random groups

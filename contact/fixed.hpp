@@ -10,7 +10,8 @@
 // monotone; the first decreasing interval whose start has f <= 0 is an event at its start (the
 // round-off rule of contact/predict.hpp: touching and closing is an event now, and a receding
 // overlap is an event when the gap starts to close again), otherwise the first decreasing interval
-// whose end has f <= 0 holds exactly one root, refined by Illinois (contact/roots.hpp).
+// whose end has f <= 0 holds exactly one root, refined by Illinois (contact/roots.hpp) with
+// bisection steps where the secant stalls, down to adjacent doubles.
 #pragma once
 
 #include <algorithm>
@@ -18,21 +19,50 @@
 #include <cmath>
 
 #include "contact/predict.hpp"
-#include "contact/roots.hpp"
 
 namespace matep {
 
 namespace detail {
 
-// Root of a function h that changes sign on [a, b] (h(a), h(b) of opposite signs or zero), by
-// Illinois on the side where h(a) > 0.
+// Root of h on [a, b] with h(a) > 0 >= h(b), to adjacent doubles: regula falsi with the Illinois
+// modification (contact/roots.hpp), and a bisection step wherever the secant point rounds onto an
+// end of the bracket (one end's value tiny against the other's, where plain Illinois stops with a
+// wide bracket). Returns the end on the h <= 0 side.
+template <class H>
+double closing_root(H&& h, double a, double ha, double b, double hb) {
+  int side = 0;
+  for (int it = 0; it < 400; ++it) {
+    double x = (a * hb - b * ha) / (hb - ha);
+    if (!(x > a && x < b)) {
+      x = 0.5 * (a + b);
+      if (!(x > a && x < b)) break;  // a and b are adjacent doubles
+      side = 0;
+    }
+    const double hx = h(x);
+    if (hx > 0.0) {
+      a = x;
+      ha = hx;
+      if (side == 1) hb *= 0.5;
+      side = 1;
+    } else {
+      b = x;
+      hb = hx;
+      if (hx == 0.0) break;
+      if (side == -1) ha *= 0.5;
+      side = -1;
+    }
+  }
+  return b;
+}
+
+// Root of a function h that changes sign on [a, b] (h(a), h(b) of opposite signs or zero).
 template <class H>
 double sign_change_root(H&& h, double a, double ha, double b, double hb) {
   if (ha == 0.0) return a;
   if (hb == 0.0) return b;
-  if (ha > 0.0) return illinois_root(h, a, ha, b, hb, 0.0, 200);
+  if (ha > 0.0) return closing_root(h, a, ha, b, hb);
   auto neg = [&](double t) { return -h(t); };
-  return illinois_root(neg, a, -ha, b, -hb, 0.0, 200);
+  return closing_root(neg, a, -ha, b, -hb);
 }
 
 }  // namespace detail
@@ -96,7 +126,7 @@ inline double fixed_sphere_impact_time(const V& r, const V& v, const V& g, doubl
     if (slope < 0.0) {
       if (fa <= 0.0) return a;  // touching (or overlapping by round-off) and closing: now
       if (fb <= 0.0) {
-        const double t = illinois_root(f, a, fa, b, fb, 0.0, 200);
+        const double t = detail::closing_root(f, a, fa, b, fb);
         return t < limit ? t : kNever;
       }
     }

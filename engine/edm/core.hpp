@@ -392,17 +392,13 @@ class EdmCore {
     const Hot<D>& hi = hot_[i];
     const Vec<D> xi = hi.x, vi = hi.v;
     const double Ri = hi.R;
+    const std::uint8_t* const fixed = n_fixed_ > 0 ? fixed_.data() : nullptr;  // held in a register
     for_neighbours(
         i,
         [&](int j, const Vec<D>& shift) {
           const Hot<D>& hj = hot_[j];
-          if (is_fixed(j)) {  // an immovable sphere: only i moves (gravity does not cancel)
-            const double dt = fixed_sphere_impact_time(Vec<D>(xi - hj.x - shift), vi, g_, Ri + hj.R, best);
-            if (dt < best) {
-              best = dt;
-              type = kPair;
-              partner = j;
-            }
+          if (fixed && fixed[j]) [[unlikely]] {
+            test_fixed(xi, vi, Ri, j, shift, best, type, partner);
             return;
           }
           if (derived().ext_skip_neighbour(i, j)) return;
@@ -421,6 +417,19 @@ class EdmCore {
           }
         },
         layer_axis, layer_dir);
+  }
+
+  // A fixed neighbour j of i (position xi, velocity vi, radius Ri): an immovable sphere, so only i
+  // moves and gravity does not cancel (contact/fixed.hpp). Out of line: the pair loop stays small.
+  [[gnu::noinline]] void test_fixed(const Vec<D>& xi, const Vec<D>& vi, double Ri, int j, const Vec<D>& shift,
+                                    double& best, std::uint8_t& type, int& partner) const {
+    const Hot<D>& hj = hot_[j];
+    const double dt = fixed_sphere_impact_time(Vec<D>(xi - hj.x - shift), vi, g_, Ri + hj.R, best);
+    if (dt < best) {
+      best = dt;
+      type = kPair;
+      partner = j;
+    }
   }
 
   void schedule(int i) { queue_->set(i, std::min(cold_[i].ev_t, cold_[i].cross_t)); }

@@ -5,18 +5,21 @@
 // The relative position p(t) = r + v t + g t^2/2 meets the contact distance sigma where
 //   f(t) = |p(t)|^2 - sigma^2 = c4 t^4 + c3 t^3 + c2 t^2 + c1 t + c0 = 0,
 //   c4 = g.g/4, c3 = v.g, c2 = v.v + r.g, c1 = 2 r.v, c0 = r.r - sigma^2   (DERIVED: expand |p|^2).
-// The earliest closing root is found without skipping one: the roots of f' (a cubic, split into
-// monotone pieces by the roots of the quadratic f'') cut [0, T] into intervals on which f is
-// monotone; the first decreasing interval whose start has f <= 0 is an event at its start (the
+// The earliest closing root is found without skipping one: the roots of the quadratic f'' cut
+// [0, T] into intervals on which f' is monotone, so that f has at most one turn on each; walking
+// them in order, a decreasing stretch that starts with f <= 0 is an event at its start (the
 // round-off rule of contact/predict.hpp: touching and closing is an event now, and a receding
-// overlap is an event when the gap starts to close again), otherwise the first decreasing interval
-// whose end has f <= 0 holds exactly one root, refined by Illinois (contact/roots.hpp) with
-// bisection steps where the secant stalls, down to adjacent doubles.
+// overlap is an event when the gap starts to close again), and one that starts with f > 0 and
+// ends with f <= 0 holds exactly one root, refined by Illinois (contact/roots.hpp) with bisection
+// steps where the secant stalls. A turn of f (a root of f') is located only when the answer needs
+// it: a maximum always, a minimum unless f is clearly below zero at the end of its interval. T is
+// the earlier of `limit` and the time after which the fall alone keeps the grain out of reach.
 #pragma once
 
 #include <algorithm>
 #include <array>
 #include <cmath>
+#include <limits>
 
 #include "contact/predict.hpp"
 
@@ -24,12 +27,13 @@ namespace matep {
 
 namespace detail {
 
-// Root of h on [a, b] with h(a) > 0 >= h(b), to adjacent doubles: regula falsi with the Illinois
-// modification (contact/roots.hpp), and a bisection step wherever the secant point rounds onto an
-// end of the bracket (one end's value tiny against the other's, where plain Illinois stops with a
-// wide bracket). Returns the end on the h <= 0 side.
+// Root of h on [a, b] with h(a) > 0 >= h(b): regula falsi with the Illinois modification
+// (contact/roots.hpp), and a bisection step wherever the secant point rounds onto an end of the
+// bracket (one end's value tiny against the other's, where plain Illinois stops with a wide
+// bracket). Stops at a point where |h| <= htol (h's round-off level), or at adjacent doubles,
+// returning the end on the h <= 0 side.
 template <class H>
-double closing_root(H&& h, double a, double ha, double b, double hb) {
+double closing_root(H&& h, double a, double ha, double b, double hb, double htol) {
   int side = 0;
   for (int it = 0; it < 400; ++it) {
     double x = (a * hb - b * ha) / (hb - ha);
@@ -39,6 +43,7 @@ double closing_root(H&& h, double a, double ha, double b, double hb) {
       side = 0;
     }
     const double hx = h(x);
+    if (std::abs(hx) <= htol) return x;
     if (hx > 0.0) {
       a = x;
       ha = hx;
@@ -47,22 +52,11 @@ double closing_root(H&& h, double a, double ha, double b, double hb) {
     } else {
       b = x;
       hb = hx;
-      if (hx == 0.0) break;
       if (side == -1) ha *= 0.5;
       side = -1;
     }
   }
   return b;
-}
-
-// Root of a function h that changes sign on [a, b] (h(a), h(b) of opposite signs or zero).
-template <class H>
-double sign_change_root(H&& h, double a, double ha, double b, double hb) {
-  if (ha == 0.0) return a;
-  if (hb == 0.0) return b;
-  if (ha > 0.0) return closing_root(h, a, ha, b, hb);
-  auto neg = [&](double t) { return -h(t); };
-  return closing_root(neg, a, -ha, b, -hb);
 }
 
 }  // namespace detail
@@ -74,21 +68,35 @@ template <class V>
 inline double fixed_sphere_impact_time(const V& r, const V& v, const V& g, double sigma, double limit = kNever) {
   const double gg = g.squaredNorm();
   if (gg == 0.0) return pair_collision_time(r, v, sigma, limit);
-  // Rejection: |p(t)| >= |r| - |v| t - |g| t^2/2, so no contact before that bound closes the gap.
-  const double rn = r.norm(), vn = v.norm(), gn = std::sqrt(gg);
-  if (rn > sigma && !(gap_closing_time(rn - sigma, -vn, -gn) < limit)) return kNever;
-  // Beyond T_hi, |g| t^2/2 - |v| t - |r| > sigma: no root.
-  const double t_hi = (vn + std::sqrt(vn * vn + 2.0 * gn * (rn + sigma))) / gn;
+  const double rr = r.squaredNorm(), vv = v.squaredNorm();
+  const double vn = std::sqrt(vv), gn = std::sqrt(gg);
+  // Rejection: |p(t)| >= |r| - |v| t - |g| t^2/2, so nothing happens before `limit` while
+  // |r| > sigma + |v| limit + |g| limit^2/2.
+  if (limit < kNever) {
+    const double reach = sigma + limit * (vn + 0.5 * gn * limit);
+    if (rr > reach * reach) return kNever;
+  }
+  const double rn = std::sqrt(rr);
+  // Beyond t_hi, |g| t^2/2 - |v| t - |r| > sigma: no root.
+  const double t_hi = (vn + std::sqrt(vv + 2.0 * gn * (rn + sigma))) / gn;
   const double T = std::min(limit, t_hi);
-  const double c4 = 0.25 * gg, c3 = v.dot(g), c2 = v.squaredNorm() + r.dot(g), c1 = 2.0 * r.dot(v);
+  const double c4 = 0.25 * gg, c3 = v.dot(g), c2 = vv + r.dot(g), c1 = 2.0 * r.dot(v);
   auto f = [&](double t) {
     const V p = r + t * (v + (0.5 * t) * g);
     return compensated_gap2(p, sigma);
   };
   auto df = [&](double t) { return ((4.0 * c4 * t + 3.0 * c3) * t + 2.0 * c2) * t + c1; };
-  auto d2f = [&](double t) { return (12.0 * c4 * t + 6.0 * c3) * t + 2.0 * c2; };
-  // Roots of f'' = 12 c4 t^2 + 6 c3 t + 2 c2 in (0, T) (c4 > 0), cancellation-free.
-  std::array<double, 5> cut{};
+  auto ndf = [&](double t) { return -df(t); };
+  // Round-off levels: of f, from the rounding of p (|p| ~ sigma near a root), and of f'.
+  constexpr double kEps = std::numeric_limits<double>::epsilon();
+  const double ftol = 4.0 * kEps * sigma * (rn + T * (vn + gn * T));
+  const double dtol = 8.0 * kEps * (((4.0 * c4 * T + 3.0 * std::abs(c3)) * T + 2.0 * std::abs(c2)) * T + std::abs(c1));
+  auto root = [&](double a, double fa, double b, double fb) {  // f(a) > 0 >= f(b)
+    const double t = detail::closing_root(f, a, fa, b, fb, ftol);
+    return t < limit ? t : kNever;
+  };
+  // Roots of f'' = 12 c4 t^2 + 6 c3 t + 2 c2 in (0, T) (c4 > 0), cancellation-free, ascending.
+  std::array<double, 4> cut{};
   int nc = 0;
   cut[nc++] = 0.0;
   {
@@ -103,34 +111,29 @@ inline double fixed_sphere_impact_time(const V& r, const V& v, const V& g, doubl
     }
   }
   cut[nc++] = T;
-  // Roots of f' (monotone between the cuts): the ends of the intervals on which f is monotone.
-  std::array<double, 5> ends{};
-  int ne = 0;
-  ends[ne++] = 0.0;
-  for (int k = 0; k + 1 < nc; ++k) {
-    const double a = cut[k], b = cut[k + 1];
-    const double da = df(a), db = df(b);
-    if ((da < 0.0 && db > 0.0) || (da > 0.0 && db < 0.0)) {
-      const double x = detail::sign_change_root(df, a, da, b, db);
-      if (x > ends[ne - 1] && x < T) ends[ne++] = x;
+  double c = 0.0, fc = f(0.0), dc = df(0.0);
+  for (int k = 1; k < nc; ++k) {
+    const double d = cut[k], fd = f(d), dd = df(d);
+    if (dc < 0.0 && dd > 0.0) {  // f falls to a minimum, then rises
+      if (fc <= 0.0) return c < limit ? c : kNever;
+      // Clearly below zero at d: one crossing, before the minimum (f <= f(d) < -ftol from there
+      // to d). Near zero at d, f may be rising through a second root there: find the minimum.
+      if (fd < -ftol) return root(c, fc, d, fd);
+      const double x = detail::closing_root(ndf, c, -dc, d, -dd, dtol);  // a dip below zero?
+      const double fx = f(x);
+      if (fx <= 0.0) return root(c, fc, x, fx);
+    } else if (dc > 0.0 && dd < 0.0) {  // f rises to a maximum, then falls
+      const double x = detail::closing_root(df, c, dc, d, dd, dtol);
+      const double fx = f(x);
+      if (fx <= 0.0) return x < limit ? x : kNever;  // still overlapping where it turns: closing now
+      if (fd <= 0.0) return root(x, fx, d, fd);
+    } else if (dc <= 0.0 && dd <= 0.0 && (dc < 0.0 || dd < 0.0)) {  // falling throughout
+      if (fc <= 0.0) return c < limit ? c : kNever;
+      if (fd <= 0.0) return root(c, fc, d, fd);
     }
-  }
-  ends[ne++] = T;
-  double fa = f(0.0);
-  for (int k = 0; k + 1 < ne; ++k) {
-    const double a = ends[k], b = ends[k + 1];
-    const double fb = f(b);
-    // Decreasing on [a, b]: f' < 0 inside (f' at the middle; f'' decides at a double root of f').
-    double slope = df(0.5 * (a + b));
-    if (slope == 0.0) slope = -d2f(a);
-    if (slope < 0.0) {
-      if (fa <= 0.0) return a;  // touching (or overlapping by round-off) and closing: now
-      if (fb <= 0.0) {
-        const double t = detail::closing_root(f, a, fa, b, fb);
-        return t < limit ? t : kNever;
-      }
-    }
-    fa = fb;
+    c = d;
+    fc = fd;
+    dc = dd;
   }
   return kNever;
 }

@@ -265,6 +265,12 @@ TEST(FixedGrains, ImpactTimeUnderGravityClosedForm) {
   const double yc = std::sqrt(sigma * sigma - b * b);
   const double t = fixed_sphere_impact_time(Vec<3>(b, y0, 0.0), Vec<3>::Zero().eval(), g, sigma);
   EXPECT_NEAR(t, std::sqrt(2.0 * (y0 - yc) / kG), 1e-14);
+  // Head-on from rest: the contact at sqrt(2 (y0 - sigma)/g) (the fall continues to the far side,
+  // |p| = sigma again below the centre, a root the search must not take).
+  for (const double y : {y0, 0.2, 5.0})
+    EXPECT_NEAR(fixed_sphere_impact_time(Vec<3>(0.0, y, 0.0), Vec<3>::Zero().eval(), g, sigma),
+                std::sqrt(2.0 * (y - sigma) / kG), 1e-14 * std::sqrt(y))
+        << y;
   // On top (touching), moving up at 1 m/s: the next contact after 2 v/g.
   const double t2 = fixed_sphere_impact_time(Vec<3>(0.0, sigma, 0.0), Vec<3>(0.0, 1.0, 0.0), g, sigma);
   EXPECT_NEAR(t2, 2.0 / kG, 1e-12);
@@ -289,6 +295,10 @@ TEST(FixedGrains, ImpactTimeUnderGravityMatchesTheReferenceScan) {
   int events = 0;
   for (int c = 0; c < 600; ++c) {
     Vec<3> dir(unit(rng), unit(rng), unit(rng)), vdir(unit(rng), unit(rng), unit(rng));
+    if (c % 5 == 0) {  // vertical flights above or below the sphere, head-on
+      dir = Vec<3>(0.0, 0.0, dir[2]);
+      vdir = Vec<3>(0.0, 0.0, vdir[2]);
+    }
     if (dir.norm() < 1e-3 || vdir.norm() < 1e-3) continue;
     const Vec<3> r = dir.normalized() * (sigma + gap(rng));
     const Vec<3> v = (0.8 * vdir.normalized() - dir.normalized()) * speed(rng);  // mostly towards it
@@ -629,12 +639,20 @@ TEST(FixedGrains, CliCheckRunAndVerifyARoughBedOnAFixedBase) {
     EXPECT_EQ(Vec<3>(x, y, z), sys.x[i]) << line;
     EXPECT_EQ(Vec<3>(vx, vy, vz), Vec<3>::Zero().eval()) << line;
   }
-  // The same scene in TDM and the hybrid: the base stays where it is.
-  for (const char* method : {"tdm", "hybrid"}) {
+  // The same scene in TDM and the hybrid (with the rest rule: grains settle on the base and sleep):
+  // the base stays where it is.
+  for (const std::string method : {"tdm", "hybrid"}) {
     const std::string o = (path.parent_path() / method).string();
-    const test::CliResult r = test::run_cli("run " + path.string() + " --quiet --set run.method=" + method +
-                                            " --set output.events=false --set run.end_time=0.05 --out " + o);
+    const std::string rest = method == "hybrid" ? " --set hybrid.rest_speed=0.005" : "";
+    const test::CliResult r = test::run_cli("run " + path.string() + " --quiet --set run.method=" + method + rest +
+                                            " --set output.events=false --set run.end_time=0.3 --out " + o);
     ASSERT_EQ(r.code, 0) << method << ": " << r.out;
+    if (method == "hybrid") {  // the rest rule was at work next to the fixed grains
+      const std::string summary = test::slurp(o + "/summary.json");
+      const auto at = summary.find("\"slept\": ");
+      ASSERT_NE(at, std::string::npos) << summary;
+      EXPECT_GT(std::stoll(summary.substr(at + 9)), 0) << summary;
+    }
     std::ifstream g(o + "/final_state.csv");
     std::getline(g, line);
     for (std::size_t i = 0; i < 100 && std::getline(g, line); ++i) {

@@ -57,7 +57,7 @@ struct Snapshot {
   std::vector<Vec<D>> x, v;
   std::vector<Spin<D>> w;  // empty when the system has no spins
   std::vector<double> radius;
-  std::vector<std::uint8_t> mode;  // hybrid: 0 hard, 1 soft, 3 asleep (empty: all hard or all soft)
+  std::vector<std::uint8_t> mode;  // hybrid: 0 hard, 1 soft, 3 asleep; 4 fixed (any method; empty: none of these)
   std::vector<std::int32_t> cluster;  // hybrid: soft cluster id, -1 for hard (empty: none)
 };
 

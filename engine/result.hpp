@@ -94,7 +94,7 @@ struct RunResult {
   std::vector<Spin<D>> w;             // empty when the system had no spins (all zero)
   SoftStats soft;                     // TDM and hybrid runs
   HybridStats hybrid;                 // hybrid runs
-  std::vector<std::uint8_t> mode;     // hybrid: final mode per particle (0 hard, 1 soft, 3 asleep)
+  std::vector<std::uint8_t> mode;     // hybrid: final mode per particle (0 hard, 1 soft, 3 asleep, 4 fixed)
 };
 
 }  // namespace matep

@@ -118,11 +118,16 @@ SoftPlan plan_soft(const System<D>& sys) {
   plan.materials = M;
   std::vector<char> used(M, 0), wall_used(M, 0);
   std::vector<double> rmin(M, kInf), rmax(M, 0.0);
+  // Fixed grains (System::fixed): per material, the smallest radius of a moving and of a fixed grain
+  // (a contact of the two has m* = the moving grain's mass).
+  std::vector<double> rmin_moving(M, kInf), rmin_fixed(M, kInf);
   for (std::size_t i = 0; i < sys.size(); ++i) {
     const int m = sys.material[i];
     used[m] = 1;
     rmin[m] = std::min(rmin[m], sys.radius[i]);
     rmax[m] = std::max(rmax[m], sys.radius[i]);
+    double& r = sys.is_fixed(i) ? rmin_fixed[m] : rmin_moving[m];
+    r = std::min(r, sys.radius[i]);
   }
   for (const auto& w : sys.walls) wall_used[w.material] = 1;
 
@@ -243,6 +248,26 @@ SoftPlan plan_soft(const System<D>& sys) {
                    0.0, rmin[a], mass_a};
       consider(c, p, plan.wall_laws[w * M + a],
                fmt::format("material.{} - wall.{} contact at radius {}", ma.name, sys.walls[w].name, rmin[a]));
+    }
+  }
+  // A moving grain against a fixed one: the pair's m* is the moving grain's mass (the fixed grain is
+  // infinitely heavy), which lengthens the contact and changes the Verlet limit (Hertz: the overlap
+  // at the impact speed grows with m*).
+  if (!sys.fixed.empty()) {
+    for (int a = 0; a < M; ++a) {
+      if (!(rmin_moving[a] < kInf)) continue;
+      const Material& ma = sys.materials[a];
+      const double mass_a = ma.density * ball_volume<D>(rmin_moving[a]);
+      for (int b = 0; b < M; ++b) {
+        if (!(rmin_fixed[b] < kInf)) continue;
+        const SoftContact c = pair_contact(plan, a, rmin_moving[a], mass_a, b, rmin_fixed[b], kPlane);
+        PairParams p{c.normal == NormalLaw::Linear ? 0.0 : effective_young(plan.elastic[a].young, plan.elastic[a].poisson,
+                                                                       plan.elastic[b].young, plan.elastic[b].poisson),
+                     0.0, effective_radius(rmin_moving[a], rmin_fixed[b]), mass_a};
+        consider(c, p, plan.laws[a * M + b],
+                 fmt::format("material.{} - fixed material.{} contact at radius {}", ma.name, sys.materials[b].name,
+                             std::min(rmin_moving[a], rmin_fixed[b])));
+      }
     }
   }
   plan.default_dt = kSoftStepFraction * std::min(plan.contact_time, plan.rayleigh_time);

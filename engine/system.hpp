@@ -68,8 +68,17 @@ struct System {
   std::vector<Spin<D>> w;
   std::vector<double> radius;
   std::vector<int> material;
+  // Fixed grains ([particles.NAME] fixed = true): immovable spheres that take part in contacts but
+  // are never moved (zero velocity and spin, no gravity). Empty: none is fixed (no memory).
+  std::vector<std::uint8_t> fixed;
 
   std::size_t size() const { return x.size(); }
+  bool is_fixed(std::size_t i) const { return !fixed.empty() && fixed[i] != 0; }
+  std::size_t fixed_count() const {
+    std::size_t n = 0;
+    for (const std::uint8_t f : fixed) n += f != 0;
+    return n;
+  }
   double volume() const {
     double V = 1.0;
     for (int k = 0; k < D; ++k) V *= upper[k] - lower[k];
@@ -77,6 +86,9 @@ struct System {
   }
   // Mass of particle i: density times volume (3D) or times area per unit thickness (2D).
   double mass(std::size_t i) const;
+  // Throws std::invalid_argument unless `fixed` is empty or has one flag per particle and every
+  // fixed grain is at rest (zero velocity and spin): the engines' precondition.
+  void check_fixed() const;
 };
 
 // Ball volume: 4/3 pi r^3 in 3D, pi r^2 in 2D (disks of unit thickness).

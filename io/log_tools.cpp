@@ -466,6 +466,7 @@ struct SceneView {
   std::vector<std::function<bool(const double*, double)>> wall_has_normal;
   std::vector<std::string> wall_text;
   std::vector<double> radius;  // per particle (rough collisions)
+  std::vector<std::uint8_t> fixed;  // per particle: a fixed grain (empty: none)
   RoughRules rough;            // which material pairs are rough, and their rule
 };
 
@@ -483,6 +484,7 @@ void fill_view(SceneView& v, const System<D>& sys, const Scene& scene, const Eve
   v.mass.resize(sys.size());
   for (std::size_t p = 0; p < sys.size(); ++p) v.mass[p] = sys.mass(p);
   v.radius = sys.radius;
+  v.fixed = sys.fixed;
   try {
     v.rough = make_rough_rules(sys.materials);
   } catch (const std::invalid_argument& e) {
@@ -513,9 +515,10 @@ struct Violation {
   std::string detail;
 };
 
-bool all_finite(const EventRecord& r) {
-  if (!std::isfinite(r.time) || !std::isfinite(r.mi) || !std::isfinite(r.mj) || !std::isfinite(r.e))
-    return false;
+// A fixed partner's mass is +infinity (version 2 logs only); everything else must be finite.
+bool all_finite(const EventRecord& r, bool fixed_partner) {
+  const bool mj_ok = std::isfinite(r.mj) || fixed_partner;
+  if (!std::isfinite(r.time) || !std::isfinite(r.mi) || !mj_ok || !std::isfinite(r.e)) return false;
   for (const double* v : {r.normal, r.vi_before, r.vj_before, r.vi_after, r.vj_after, r.wi_before,
                           r.wj_before, r.wi_after, r.wj_after})
     for (int c = 0; c < 3; ++c)
@@ -535,6 +538,7 @@ std::optional<Violation> check_rough(const EventRecord& r, const EventLogHeader&
     return std::optional<Violation>(Violation{std::move(check), std::move(detail)});
   };
   const bool pair = is_pair(r.kind);
+  const bool two = pair && !std::isinf(r.mj);  // a fixed partner is infinitely heavy, like a wall
   const double q = h.dimension == 2 ? 0.5 : 0.4;  // I/(m R^2): solid disk, solid sphere
   const double* n = r.normal;
   double dvi[3], dvj[3], dwi[3], dwj[3];
@@ -598,7 +602,7 @@ std::optional<Violation> check_rough(const EventRecord& r, const EventLogHeader&
   const double vt = norm3(tb);
   // Tangential restitution: v_t' = -beta v_t with beta in [-1, 1] (the scene's rule, or implied).
   const double mi = r.mi, mj = pair ? r.mj : std::numeric_limits<double>::infinity();
-  const double mstar = pair ? mi * mj / (mi + mj) : mi;
+  const double mstar = two ? mi * mj / (mi + mj) : mi;
   const double mt = rough_tangential_mass(mi, q, mj, q);
   double beta = vt > 0.0 ? -dot3(ta, tb) / (vt * vt) : -1.0;
   std::string rule = "implied by the record";
@@ -621,7 +625,7 @@ std::optional<Violation> check_rough(const EventRecord& r, const EventLogHeader&
     double gi[3];
     for (int c = 0; c < 3; ++c) gi[c] = pair ? vi[c] : vi[c] - vj[c];
     double k = 0.5 * mi * dot3(gi, gi) + 0.5 * q * mi * Ri * Ri * dot3(wi, wi);
-    if (pair) k += 0.5 * r.mj * dot3(vj, vj) + 0.5 * q * r.mj * Rj * Rj * dot3(wj, wj);
+    if (two) k += 0.5 * r.mj * dot3(vj, vj) + 0.5 * q * r.mj * Rj * Rj * dot3(wj, wj);
     return k;
   };
   const double ke_b = ke(r.vi_before, r.vj_before, r.wi_before, r.wj_before);
@@ -643,7 +647,18 @@ std::optional<Violation> check_record(const EventRecord& r, const EventLogHeader
   auto fail = [](std::string check, std::string detail) {
     return std::optional<Violation>(Violation{std::move(check), std::move(detail)});
   };
-  if (!all_finite(r)) return fail("finite values", "a field is NaN or infinite");
+  // A fixed partner (version 2): mj = +infinity, at rest; the collision is checked as one with a
+  // wall at rest whose normal is the pair's.
+  const bool fixed = pair && h.version >= kEventLogVersionFixed && r.mj == std::numeric_limits<double>::infinity();
+  const bool two = pair && !fixed;
+  if (!all_finite(r, fixed)) return fail("finite values", "a field is NaN or infinite");
+  if (fixed) {
+    const double rest = std::max({norm3(r.vj_before), norm3(r.vj_after), norm3(r.wj_before), norm3(r.wj_after)});
+    if (rest != 0.0)
+      return fail("fixed partner", fmt::format("particle {} has mj = infinity (a fixed grain) but moves or spins "
+                                               "(largest |vj|, |wj| {:.6g})",
+                                               r.j, rest));
+  }
   if (r.i >= h.particles || (pair && (r.j >= h.particles || r.j == r.i)))
     return fail("particle index",
                 fmt::format("i = {}, j = {} in a log of {} particles", r.i, r.j, h.particles));
@@ -660,7 +675,11 @@ std::optional<Violation> check_record(const EventRecord& r, const EventLogHeader
     if (std::abs(r.mi - m) > tol * m)
       return fail("mass", fmt::format("mi = {:.17g} but the scene gives particle {} mass {:.17g}", r.mi,
                                       r.i, m));
-    if (pair && std::abs(r.mj - sv->mass[r.j]) > tol * sv->mass[r.j])
+    const bool scene_fixed = pair && !sv->fixed.empty() && sv->fixed[r.j];
+    if (pair && scene_fixed != fixed)
+      return fail("mass", fmt::format("mj = {:.17g} but particle {} is {}fixed in the scene", r.mj, r.j,
+                                      scene_fixed ? "" : "not "));
+    if (two && std::abs(r.mj - sv->mass[r.j]) > tol * sv->mass[r.j])
       return fail("mass", fmt::format("mj = {:.17g} but the scene gives particle {} mass {:.17g}", r.mj,
                                       r.j, sv->mass[r.j]));
     if (!pair) {
@@ -706,8 +725,9 @@ std::optional<Violation> check_record(const EventRecord& r, const EventLogHeader
     rough = std::max(norm3(di), norm3(dj)) > tol * (norm3(r.wi_before) + (pair ? norm3(r.wj_before) : 0.0));
   }
 
-  // Momentum: pair mi dvi + mj dvj = 0; wall: the impulse is along n (tangential velocity kept).
-  if (pair) {
+  // Momentum: pair mi dvi + mj dvj = 0; wall or fixed partner: the impulse is along n (tangential
+  // velocity kept).
+  if (two) {
     double dp[3];
     for (int c = 0; c < 3; ++c) dp[c] = r.mi * dvi[c] + r.mj * dvj[c];
     const double P = r.mi * vib + r.mj * vjb;
@@ -763,13 +783,13 @@ std::optional<Violation> check_record(const EventRecord& r, const EventLogHeader
 
   // Energy: KE lost = (1 - e^2) m* u_n^2 / 2 (a wall collision: in the wall's frame).
   {
-    const double ke_b = pair ? 0.5 * r.mi * dot3(r.vi_before, r.vi_before) +
-                                   0.5 * r.mj * dot3(r.vj_before, r.vj_before)
-                             : 0.5 * r.mi * dot3(gb, gb);
-    const double ke_a = pair ? 0.5 * r.mi * dot3(r.vi_after, r.vi_after) +
-                                   0.5 * r.mj * dot3(r.vj_after, r.vj_after)
-                             : 0.5 * r.mi * dot3(ga, ga);
-    const double mstar = pair ? r.mi * r.mj / (r.mi + r.mj) : r.mi;
+    const double ke_b = two ? 0.5 * r.mi * dot3(r.vi_before, r.vi_before) +
+                                  0.5 * r.mj * dot3(r.vj_before, r.vj_before)
+                            : 0.5 * r.mi * dot3(gb, gb);
+    const double ke_a = two ? 0.5 * r.mi * dot3(r.vi_after, r.vi_after) +
+                                  0.5 * r.mj * dot3(r.vj_after, r.vj_after)
+                            : 0.5 * r.mi * dot3(ga, ga);
+    const double mstar = two ? r.mi * r.mj / (r.mi + r.mj) : r.mi;
     const double expected = 0.5 * (1.0 - r.e * r.e) * mstar * ub * ub;
     const double lost = ke_b - ke_a;
     const double eres = std::abs(lost - expected);

@@ -126,10 +126,10 @@ EventLogReader::EventLogReader(const std::string& path) : path_(path) {
   header_.dimension = get_u32(h + 12);
   header_.record_size = get_u32(h + 16);
   header_.particles = get_u64(h + 24);
-  if (header_.version != kEventLogVersion)
+  if (header_.version != kEventLogVersion && header_.version != kEventLogVersionFixed)
     throw IoError(fmt::format("{}: event log version {} at byte offset 8 is not supported (this "
-                              "build reads version {})",
-                              path, header_.version, kEventLogVersion));
+                              "build reads versions {} and {})",
+                              path, header_.version, kEventLogVersion, kEventLogVersionFixed));
   if (header_.record_size != kEventRecordSize || (header_.dimension != 2 && header_.dimension != 3))
     throw IoError(fmt::format("{}: corrupt event log header (record size {}, dimension {})", path,
                               header_.record_size, header_.dimension));
@@ -158,13 +158,14 @@ bool EventLogReader::next(EventRecord& rec) {
 // ---- event log writer -----------------------------------------------------------------------
 
 template <int D>
-EventLogWriter<D>::EventLogWriter(const std::string& path, std::uint64_t particles) : path_(path) {
+EventLogWriter<D>::EventLogWriter(const std::string& path, std::uint64_t particles, std::uint32_t version)
+    : path_(path) {
   f_ = open_or_throw(path, "wb");
   buffer_.resize(1 << 20);
   std::setvbuf(f_, buffer_.data(), _IOFBF, buffer_.size());
   unsigned char h[kEventLogHeaderSize] = {};
   std::memcpy(h, kEventLogMagic, 8);
-  put_u32(h + 8, kEventLogVersion);
+  put_u32(h + 8, version);
   put_u32(h + 12, D);
   put_u32(h + 16, kEventRecordSize);
   put_u64(h + 24, particles);

@@ -23,8 +23,12 @@ class IoError : public std::runtime_error {
 // u32 dimension, u32 record size, u32 reserved, u64 particle count, zero padding. Then records
 // of kEventRecordSize bytes (vectors always have 3 components; 2D leaves z = 0 and stores the
 // disk spin in the z component).
+// Version 2 is the same layout, written by runs with fixed grains: a pair record whose partner j is
+// a fixed grain has mj = +infinity and vj, wj = 0. A reader takes both versions (version 1 never
+// has an infinite mass); runs without fixed grains still write version 1.
 inline constexpr char kEventLogMagic[8] = {'M', 'A', 'T', 'E', 'P', 'L', 'O', 'G'};
 inline constexpr std::uint32_t kEventLogVersion = 1;
+inline constexpr std::uint32_t kEventLogVersionFixed = 2;
 inline constexpr std::size_t kEventLogHeaderSize = 64;
 inline constexpr std::size_t kEventRecordSize = 264;
 
@@ -69,7 +73,8 @@ class EventLogReader {
 template <int D>
 class EventLogWriter final : public Observer<D> {
  public:
-  EventLogWriter(const std::string& path, std::uint64_t particles);
+  // version: kEventLogVersion, or kEventLogVersionFixed for a system with fixed grains.
+  EventLogWriter(const std::string& path, std::uint64_t particles, std::uint32_t version = kEventLogVersion);
   ~EventLogWriter() override;
   bool wants_collisions() const override { return true; }
   void on_collision(const CollisionRecord<D>& rec) override;

@@ -142,7 +142,8 @@ RunOutcome run_system(const Scene& scene, const System<D>& sys, const std::strin
   std::unique_ptr<EventLogWriter<D>> log;
   std::vector<Observer<D>*> observers{static_cast<Observer<D>*>(&thermo)};
   if (scene.output.events) {
-    log = std::make_unique<EventLogWriter<D>>(dir + "/events.bin", sys.size());
+    log = std::make_unique<EventLogWriter<D>>(dir + "/events.bin", sys.size(),
+                                              sys.fixed.empty() ? kEventLogVersion : kEventLogVersionFixed);
     observers.push_back(log.get());
   }
   std::unique_ptr<VtkSnapshotWriter<D>> vtk;
@@ -216,6 +217,8 @@ std::string describe(const Scene& scene, const System<D>& sys) {
   for (int g : scene.group) ++per_group[g];
   for (std::size_t g = 0; g < per_group.size(); ++g)
     s += fmt::format("  [particles.{}] {}\n", scene.group_names[g], per_group[g]);
+  if (const std::size_t nf = sys.fixed_count(); nf > 0)
+    s += fmt::format("fixed        {} of {} grains are fixed (immovable spheres)\n", nf, sys.size());
   s += fmt::format("method       {}", method_name(scene.method));
   if (scene.method == Method::Edm) {
     s += fmt::format(" (event-driven hard {}, {} queue)\n", D == 3 ? "spheres" : "disks", scene.queue);

@@ -149,6 +149,7 @@ struct Group {
   bool region_given = false;
   std::optional<double> temperature;
   Vec<D> velocity = Vec<D>::Zero();
+  bool fixed = false;  // immovable grains (at rest; a file's velocities and spins are dropped)
   // Particles.
   std::vector<Vec<D>> x, v;
   std::vector<Spin<D>> w;
@@ -176,9 +177,15 @@ struct Builder {
   }
 
   void read_group(const std::string& name, const TableReader& t) {
-    t.allow({"material", "file", "radius", "count", "arrangement", "region", "temperature", "velocity"});
+    t.allow({"material", "file", "radius", "count", "arrangement", "region", "temperature", "velocity", "fixed"});
     Group<D> g(name, t);
     g.material = material_index(t, sys.materials);
+    g.fixed = t.boolean_or("fixed", false);
+    if (g.fixed) {
+      for (const char* k : {"velocity", "temperature"}) {
+        if (t.has(k)) t.fail(k, "cannot be combined with fixed = true (a fixed grain does not move)", t.need(k));
+      }
+    }
     if (t.has("file")) {
       for (const char* k : {"radius", "count", "arrangement", "region", "temperature", "velocity"}) {
         if (t.has(k)) t.fail(k, "cannot be combined with file (the file gives every particle)", t.need(k));
@@ -189,6 +196,10 @@ struct Builder {
       if (p.is_relative()) p = base_dir / p;
       g.file_path = p.lexically_normal().string();
       read_file(g);
+      if (g.fixed) {  // the file's velocity and spin columns describe motion a fixed grain has not
+        g.v.assign(g.v.size(), Vec<D>::Zero());
+        g.w.assign(g.w.size(), Spin<D>::Zero());
+      }
     } else {
       read_generated(g, t);
     }
@@ -639,6 +650,9 @@ void build_system(const TableReader& top, const TableReader& run, const fs::path
   sys.radius.reserve(total);
   sys.material.reserve(total);
   scene.group.reserve(total);
+  bool any_fixed = false;
+  for (const auto& g : b.groups) any_fixed = any_fixed || g.fixed;
+  if (any_fixed) sys.fixed.reserve(total);
   for (std::size_t gi = 0; gi < b.groups.size(); ++gi) {
     const Group<D>& g = b.groups[gi];
     scene.group_names.push_back(g.name);
@@ -648,6 +662,7 @@ void build_system(const TableReader& top, const TableReader& run, const fs::path
       sys.w.push_back(g.w[i]);
       sys.radius.push_back(g.r[i]);
       sys.material.push_back(g.material);
+      if (any_fixed) sys.fixed.push_back(g.fixed ? 1 : 0);
       scene.group.push_back(static_cast<int>(gi));
     }
   }

@@ -27,6 +27,7 @@
 #include <string>
 #include <vector>
 
+#include "contact/fixed.hpp"
 #include "contact/hard.hpp"
 #include "contact/predict.hpp"
 #include "contact/rough.hpp"
@@ -101,6 +102,9 @@ class EdmCore {
   // Everything from the system, once the derived engine is constructed.
   void init(const RoughRules* rough) {
     const System<D>& sys = sys_;
+    sys.check_fixed();
+    n_fixed_ = static_cast<int>(sys.fixed_count());
+    if (n_fixed_ > 0) fixed_ = sys.fixed;
     g_ = sys.gravity;
     gravity_ = g_.squaredNorm() > 0.0;
     lo_ = sys.lower;
@@ -126,6 +130,7 @@ class EdmCore {
     }
     free_array(sys_.x);
     free_array(sys_.v);
+    free_array(sys_.fixed);
     free_array(sys_.radius);
     cold_.resize(N_);
     for (int i = 0; i < N_; ++i) cold_[i].mat = sys.material[i];
@@ -153,6 +158,11 @@ class EdmCore {
     V().swap(v);
   }
 
+  // Whether i is a fixed grain (System::fixed): never predicted, never moved.
+  bool is_fixed(int i) const { return n_fixed_ > 0 && fixed_[i] != 0; }
+  // Whether i flies between its events (its stored state may be extrapolated in time).
+  bool flies(int i) const { return !is_fixed(i) && derived().moved_by_events(i); }
+
   double mass(int i) const {
     const double R = hot_[i].R;
     return D == 3 ? mass_factor_[cold_[i].mat] * R * R * R : mass_factor_[cold_[i].mat] * R * R;
@@ -164,7 +174,7 @@ class EdmCore {
     derived().ext_start();
     emit_sample(0.0, /*interval=*/0.0);
     for (int i = 0; i < N_; ++i)
-      if (derived().predicted(i)) predict(i, 0.0);
+      if (!is_fixed(i) && derived().predicted(i)) predict(i, 0.0);
     if (set_.thermo_interval > 0.0 && set_.thermo_interval < set_.end_time * (1.0 - 1e-12))
       queue_->set(sample_id_, set_.thermo_interval);
     queue_->set(end_id_, set_.end_time);
@@ -209,7 +219,7 @@ class EdmCore {
     const double t_end = status_.empty() ? set_.end_time : now_;
     // Particles moved by an extension stay where it left them.
     for (int i = 0; i < N_; ++i)
-      if (derived().moved_by_events(i)) advance(i, t_end);
+      if (flies(i)) advance(i, t_end);
     if (t_end > last_sample_time_ || counts_.samples == 1) emit_sample(t_end, t_end - last_sample_time_);
     if (snapshots_ && t_end > last_snapshot_time_) emit_snapshot(t_end);
 
@@ -331,7 +341,7 @@ class EdmCore {
 
   // ---- motion ---------------------------------------------------------------------------------
   void advance(int i, double t) {
-    if (!derived().moved_by_events(i)) return;  // moved by an extension (the hybrid's substeps)
+    if (!flies(i)) return;  // fixed, or moved by an extension (the hybrid's substeps)
     Hot<D>& h = hot_[i];
     const double dt = t - h.t;
     if (dt == 0.0) return;
@@ -386,11 +396,16 @@ class EdmCore {
     const Hot<D>& hi = hot_[i];
     const Vec<D> xi = hi.x, vi = hi.v;
     const double Ri = hi.R;
+    const std::uint8_t* const fixed = n_fixed_ > 0 ? fixed_.data() : nullptr;  // held in a register
     for_neighbours(
         i,
         [&](int j, const Vec<D>& shift) {
-          if (derived().ext_skip_neighbour(i, j)) return;
           const Hot<D>& hj = hot_[j];
+          if (fixed && fixed[j]) [[unlikely]] {
+            test_fixed(xi, vi, Ri, j, shift, best, type, partner);
+            return;
+          }
+          if (derived().ext_skip_neighbour(i, j)) return;
           const double dtj = now - hj.t;
           Vec<D> r = xi - hj.x - shift - hj.v * dtj;
           Vec<D> v = vi - hj.v;
@@ -406,6 +421,19 @@ class EdmCore {
           }
         },
         layer_axis, layer_dir);
+  }
+
+  // A fixed neighbour j of i (position xi, velocity vi, radius Ri): an immovable sphere, so only i
+  // moves and gravity does not cancel (contact/fixed.hpp). Out of line: the pair loop stays small.
+  [[gnu::noinline]] void test_fixed(const Vec<D>& xi, const Vec<D>& vi, double Ri, int j, const Vec<D>& shift,
+                                    double& best, std::uint8_t& type, int& partner) const {
+    const Hot<D>& hj = hot_[j];
+    const double dt = fixed_sphere_impact_time(Vec<D>(xi - hj.x - shift), vi, g_, Ri + hj.R, best);
+    if (dt < best) {
+      best = dt;
+      type = kPair;
+      partner = j;
+    }
   }
 
   void schedule(int i) { queue_->set(i, std::min(cold_[i].ev_t, cold_[i].cross_t)); }
@@ -533,7 +561,7 @@ class EdmCore {
         if (derived().ext_divert_pair(i, j, t)) return;
         collide_pair(i, j);
         predict(i, t);
-        predict(j, t);
+        if (!is_fixed(j)) predict(j, t);
         return;
       }
       case kWall: {
@@ -549,6 +577,10 @@ class EdmCore {
   }
 
   void collide_pair(int i, int j) {
+    if (is_fixed(j)) {
+      collide_fixed(i, j);
+      return;
+    }
     Hot<D>& a = hot_[i];
     Hot<D>& b = hot_[j];
     Vec<D> r = a.x - b.x;
@@ -588,6 +620,47 @@ class EdmCore {
     if (log) {
       rec.mj = mass(j);
       rec.vj_after = b.v;
+      emit_collision(rec, EventKind::PairCollision, i, j, e, n);
+    }
+  }
+
+  // Collision of moving i with fixed grain j: j is infinitely heavy and at rest, so i reflects off it
+  // as off a wall at rest whose normal is the pair's n (collide_wall), with the restitution (and the
+  // rough rule) of the material pair. j's collision counter stays as it is (nobody's prediction with j
+  // is invalidated: j has not changed course) and j is not counted by the collapse detector. Like a
+  // wall collision it adds nothing to the virial (j is a boundary). The record is a pair record with
+  // mj = infinity and vj = 0 (event log version 2, io/output.hpp).
+  void collide_fixed(int i, int j) {
+    Hot<D>& a = hot_[i];
+    Vec<D> r = a.x - hot_[j].x;
+    min_image(r);
+    const Vec<D> n = r / r.norm();
+    const double un = a.v.dot(n);
+    if (!(un < 0.0)) {
+      // Resting on the fixed grain within round-off: as collide_wall.
+      note_collision(i);
+      return;
+    }
+    double e = restitution(cold_[i].mat, cold_[j].mat, -un);
+    if (set_.tc > 0.0 && now_ - cold_[i].last < set_.tc) e = 1.0;
+    CollisionRecord<D> rec;
+    const bool log = !collision_observers_.empty();
+    if (log) {
+      rec.vi_before = a.v;
+      fill_spins(rec, i, j, /*before=*/true);
+    }
+    if (rough_ && rough_rules_.is_rough(cold_[i].mat, cold_[j].mat)) {
+      const RoughResult<D> res = rough_wall_collision<D>(rough_body(i), n, e, rough_rules_.rule(cold_[i].mat, cold_[j].mat));
+      a.v = res.v_i;
+      sys_.w[i] = res.w_i;
+    } else {
+      smooth_wall_collision(a.v, mass(i), n, e);
+    }
+    ++cold_[i].counter;
+    ++counts_.pair;
+    note_collision(i);
+    if (log) {
+      rec.mj = kPlane;
       emit_collision(rec, EventKind::PairCollision, i, j, e, n);
     }
   }
@@ -715,13 +788,17 @@ class EdmCore {
     snap.radius.resize(N_);
     for (int i = 0; i < N_; ++i) {
       const Hot<D>& h = hot_[i];
-      const double dt = derived().moved_by_events(i) ? t - h.t : 0.0;
+      const double dt = flies(i) ? t - h.t : 0.0;
       snap.x[i] = h.x + h.v * dt + (0.5 * dt * dt) * g_;
       snap.v[i] = h.v + g_ * dt;
       snap.radius[i] = h.R;
     }
     snap.w = sys_.w;
     derived().ext_snapshot(snap);
+    if (n_fixed_ > 0 && snap.mode.empty()) {  // a pure run: 0 for a moving grain, 4 for a fixed one
+      snap.mode.assign(N_, 0);
+      for (int i = 0; i < N_; ++i) snap.mode[i] = is_fixed(i) ? 4 : 0;
+    }
     for (auto* o : snapshot_observers_) o->on_snapshot(snap);
   }
 
@@ -738,7 +815,7 @@ class EdmCore {
     double mv2 = 0.0, pe = 0.0, rot = 0.0;
     for (int i = 0; i < N_; ++i) {
       const Hot<D>& h = hot_[i];
-      const double dt = derived().moved_by_events(i) ? t - h.t : 0.0;
+      const double dt = flies(i) ? t - h.t : 0.0;
       Vec<D> v = h.v, x = h.x;
       if (dt != 0.0) {
         x += h.v * dt + (0.5 * dt * dt) * g_;
@@ -753,7 +830,8 @@ class EdmCore {
     s.kinetic_energy = 0.5 * mv2;
     s.rotational_energy = rot;
     s.potential_energy = pe;
-    s.temperature = N_ > 0 ? mv2 / (D * N_) : 0.0;
+    const int moving = N_ - n_fixed_;  // fixed grains have no kinetic degrees of freedom
+    s.temperature = moving > 0 ? mv2 / (D * moving) : 0.0;
     s.collisions = counts_.collisions();
     derived().ext_sample(s);
     // P V = N T + (1/(d dt)) sum_collisions r_ij . dp_i  (REFERENCES 2.3; Smallenburg's EDMD).
@@ -770,13 +848,15 @@ class EdmCore {
     double worst = 0.0, worst_rel = 0.0;
     for (int i = 0; i < N_; ++i) {
       const Hot<D>& a = hot_[i];
+      const bool fi = is_fixed(i);
       for_neighbours(i, [&](int j, const Vec<D>& shift) {
-        if (j < i) return;
+        if (j < i || (fi && is_fixed(j))) return;  // two fixed grains never meet
         const double sigma = a.R + hot_[j].R;
         const double ov = sigma - (a.x - hot_[j].x - shift).norm();
         if (ov > worst) worst = ov;
         if (ov / sigma > worst_rel) worst_rel = ov / sigma;
       });
+      if (fi) continue;  // nor do a fixed grain and a wall
       for (const WallShape<D>* wall : shapes_) {
         const double ov = -wall->at(a.x, a.R, res.time).gap;
         if (ov > worst) worst = ov;
@@ -806,6 +886,8 @@ class EdmCore {
   std::vector<Observer<D>*> observers_, collision_observers_, snapshot_observers_;
   Vec<D> g_, lo_, hi_, L_;
   bool gravity_ = false, all_elastic_ = false;
+  int n_fixed_ = 0;                   // fixed grains; fixed_ (one flag per particle) is empty without
+  std::vector<std::uint8_t> fixed_;
   std::vector<const WallShape<D>*> shapes_;  // sys_.walls[w].shape
   std::vector<Vec<D>> anchors_;               // their anchors (torque reference)
   WallLoads<D> wall_loads_;                   // the grains' impulses on the walls since the last sample

@@ -103,6 +103,7 @@ class HybridEngine final : public edm::EdmCore<D, CalendarQueue, HybridEngine<D>
   using Base::rough_;
   using Base::rough_rules_;
   using Base::mass;
+  using Base::is_fixed;
   using Base::advance;
   using Base::predict;
   using Base::for_neighbours;
@@ -130,7 +131,10 @@ class HybridEngine final : public edm::EdmCore<D, CalendarQueue, HybridEngine<D>
   // v(t - h/2), acc_ a(t - h) (for the predicted velocity of the dashpots), f_/tq_ the force and
   // torque at t; hot_.x and hot_.t the position and time of the last substep, hot_.v and sys_.w the
   // full-step velocity and spin v(t) = v(t - h/2) + h/2 a(t) (for samples, snapshots and release).
-  enum : std::uint8_t { kHard = 0, kSoft = 1, kPending = 2, kAsleep = 3 };
+  // A fixed grain (System::fixed) is kFixed for the whole run: an immovable sphere in the hard
+  // collisions (the core) and a partner in the soft set's contact lists that is never integrated;
+  // it never switches, sleeps or wakes, and a hard grain colliding with it is judged by the wall rule.
+  enum : std::uint8_t { kHard = 0, kSoft = 1, kPending = 2, kAsleep = 3, kFixed = 4 };
 
   // Whether i moves ballistically between its events (hard or pending), i.e. its stored state may
   // be extrapolated in time; a soft or sleeping particle is at its last substep.
@@ -219,7 +223,10 @@ class HybridEngine final : public edm::EdmCore<D, CalendarQueue, HybridEngine<D>
       ctab_.push_back(pair_contact(plan_, m, R, M, m, R, M));
       for (std::size_t w = 0; w < sys_.walls.size(); ++w)
         ctab_.push_back(wall_contact(plan_, static_cast<int>(w), m, R, M));
+      ctab_.push_back(pair_contact(plan_, m, R, M, m, R, kPlane));  // a moving and a fixed grain
     }
+    for (int i = 0; i < N_; ++i)
+      if (is_fixed(i)) fixed_list_.push_back(i);
     minv_.resize(N_);
     iinv_.resize(N_);
     for (int i = 0; i < N_; ++i) {
@@ -246,6 +253,7 @@ class HybridEngine final : public edm::EdmCore<D, CalendarQueue, HybridEngine<D>
     near_.assign(N_, 0);
     switch_.reset(N_, switch_params_);
     mode_.assign(N_, kHard);
+    for (const int i : fixed_list_) mode_[i] = kFixed;
     if (sleeping_) {
       fz_base_.assign(N_, Vec<D>::Zero());
       fz_mix_.assign(N_, Vec<D>::Zero());
@@ -300,7 +308,7 @@ class HybridEngine final : public edm::EdmCore<D, CalendarQueue, HybridEngine<D>
     } else {
       const int mb = cold_[j].mat;
       law = &plan_.laws[static_cast<std::size_t>(ma) * plan_.materials + mb];
-      p = pair_params(plan_.elastic[ma], Ri, mass(i), plan_.elastic[mb], hot_[j].R, mass(j));
+      p = pair_params(plan_.elastic[ma], Ri, mass(i), plan_.elastic[mb], hot_[j].R, is_fixed(j) ? kPlane : mass(j));
     }
     return soft_contact_time(*law, p, std::max(u, 1e-300));
   }
@@ -309,6 +317,7 @@ class HybridEngine final : public edm::EdmCore<D, CalendarQueue, HybridEngine<D>
   // both at time t and touching. Returns true when the pair (and its cluster) turned soft instead
   // of colliding.
   bool soft_rule_pair(int i, int j, double t) {
+    if (mode_[j] == kFixed) return soft_rule_fixed(i, j, t);
     const Switch v = switch_.pair(i, j, t, cold_[i].last, cold_[j].last, [&] {
       Vec<D> r = hot_[i].x - hot_[j].x;
       min_image(r);
@@ -329,6 +338,18 @@ class HybridEngine final : public edm::EdmCore<D, CalendarQueue, HybridEngine<D>
     const double un = (hot_[i].v - c.velocity).dot(c.normal);
     // Resting on the wall (no normal speed left) is the zero-time limit of a bouncing sequence.
     const Switch v = switch_.wall(i, t, cold_[i].last, !(un < 0.0), [&] { return contact_time_of(i, -1, w, -un); });
+    if (v == Switch::Stay) return false;
+    make_pending(i, t, v == Switch::Stability ? kByStability : kByCost);
+    return true;
+  }
+
+  // A hard collision of i with fixed grain j: the wall rule (j is immovable, as a wall; resting on it
+  // counts as unstable), with the contact time of the pair (m* = i's mass). Only i turns soft.
+  bool soft_rule_fixed(int i, int j, double t) {
+    Vec<D> r = hot_[i].x - hot_[j].x;
+    min_image(r);
+    const double un = hot_[i].v.dot(r) / r.norm();
+    const Switch v = switch_.wall(i, t, cold_[i].last, !(un < 0.0), [&] { return contact_time_of(i, j, -1, -un); });
     if (v == Switch::Stay) return false;
     make_pending(i, t, v == Switch::Stability ? kByStability : kByCost);
     return true;
@@ -429,7 +450,7 @@ class HybridEngine final : public edm::EdmCore<D, CalendarQueue, HybridEngine<D>
     const double Ri = hot_[i].R;
     pairs_.begin_row(ui(i));
     for_neighbours(i, [&](int j, const Vec<D>& shift) {
-      if (mode_[j] != kSoft && mode_[j] != kAsleep) return;
+      if (mode_[j] != kSoft && mode_[j] != kAsleep && mode_[j] != kFixed) return;
       const double cut = Ri + hot_[j].R + lskin_;
       if ((xi - hot_[j].x - shift).squaredNorm() >= cut * cut) return;
       pairs_.add({ui(i), ui(j), pair_contact_of(i, j), image_of(shift), 0, Vec<D>::Zero()});
@@ -442,6 +463,12 @@ class HybridEngine final : public edm::EdmCore<D, CalendarQueue, HybridEngine<D>
   // Index of the contact constants of a pair (a wall) in ctab_, computed once per combination of
   // materials and radii.
   std::uint32_t pair_contact_of(int a, int b) {
+    if (is_fixed(a) || is_fixed(b)) {  // m* = the moving grain's mass (w = -2 marks the kind)
+      if (is_fixed(a)) std::swap(a, b);
+      if (uniform_) return 1 + static_cast<std::uint32_t>(sys_.walls.size());
+      return lookup_contact(cold_[a].mat, hot_[a].R, cold_[b].mat, hot_[b].R, -2,
+                            [&] { return pair_contact(plan_, cold_[a].mat, hot_[a].R, mass(a), cold_[b].mat, hot_[b].R, kPlane); });
+    }
     if (uniform_) return 0;
     return lookup_contact(cold_[a].mat, hot_[a].R, cold_[b].mat, hot_[b].R, -1,
                           [&] { return pair_contact(plan_, cold_[a].mat, hot_[a].R, mass(a), cold_[b].mat, hot_[b].R, mass(b)); });
@@ -453,7 +480,7 @@ class HybridEngine final : public edm::EdmCore<D, CalendarQueue, HybridEngine<D>
   }
   template <class Make>
   std::uint32_t lookup_contact(int ma, double Ra, int mb, double Rb, int w, Make&& make) {
-    if (mb >= 0 && (mb < ma || (mb == ma && Rb < Ra))) {
+    if (w == -1 && mb >= 0 && (mb < ma || (mb == ma && Rb < Ra))) {  // a symmetric pair (not moving-fixed)
       std::swap(ma, mb);
       std::swap(Ra, Rb);
     }
@@ -511,7 +538,7 @@ class HybridEngine final : public edm::EdmCore<D, CalendarQueue, HybridEngine<D>
       pairs_.begin_row(ui(i));
       soft_grid_neighbours(i, [&](int j, const Vec<D>& shift) {
         const std::uint8_t m = mode_[j];
-        if (!((m == kSoft && j > i) || m == kAsleep)) return;
+        if (!((m == kSoft && j > i) || m == kAsleep || m == kFixed)) return;
         const double cut = Ri + hot_[j].R + lskin_;
         if ((xi - hot_[j].x - shift).squaredNorm() >= cut * cut) return;
         PairEntry e{ui(i), ui(j), pair_contact_of(i, j), image_of(shift), 0, Vec<D>::Zero()};
@@ -569,6 +596,7 @@ class HybridEngine final : public edm::EdmCore<D, CalendarQueue, HybridEngine<D>
     };
     for (const int i : soft_) place(i);
     for (const int i : asleep_list_) place(i);
+    for (const int i : fixed_list_) place(i);  // those within reach of the soft set
     for (std::size_t c = 0; c < cells; ++c) sg_start_[c + 1] += sg_start_[c];
     sg_items_.resize(sg_part_.size());
     sg_fill_.assign(sg_start_.begin(), sg_start_.end() - 1);
@@ -862,6 +890,7 @@ class HybridEngine final : public edm::EdmCore<D, CalendarQueue, HybridEngine<D>
     bool onset_ok, sleepers;
     std::uint64_t begun = 0;
     double vir = 0.0;
+    bool fixed_j = false;  // the last partner() was a fixed grain
 
     bool onset() const { return onset_ok; }
     const SoftContact& contact(std::uint32_t e, std::uint32_t, std::uint32_t, SoftContact&) const { return C[cidx[e]]; }
@@ -875,17 +904,26 @@ class HybridEngine final : public edm::EdmCore<D, CalendarQueue, HybridEngine<D>
     }
     void overlap(double, double) {}
     void touching(std::uint32_t i, std::uint32_t j) { TOUCHING[i] = TOUCHING[j] = 1; }
-    void near(std::uint32_t i, std::uint32_t j) { NEAR[i] = NEAR[j] = 1; }  // release needs no particle within the capture skin
+    // Release needs no particle within the capture skin, save a fixed one (a hard grain meets it in
+    // EDM without being captured).
+    void near(std::uint32_t i, std::uint32_t j) {
+      if (MODE[j] != kFixed) NEAR[i] = NEAR[j] = 1;
+    }
     double near_skin() const { return skin; }
     bool any_asleep() const { return sleepers; }
     bool asleep(std::uint32_t i) const { return MODE[i] == kAsleep; }
     bool approached(double un) const { return rest.approached(un); }
     void wake(std::uint32_t k) { LOST[k] = 1; }
     [[gnu::always_inline]] void partner(Vec<D>* FF, Spin<D>* TQ, std::uint32_t j, const Vec<D>& f, const Spin<D>& t) {
+      fixed_j = MODE[j] == kFixed;
+      if (fixed_j) return;  // a fixed grain is never integrated
       FF[j] -= f;
       if constexpr (Rot) TQ[j] += t;
     }
-    void virial(const Vec<D>& F, const Vec<D>& dx) { vir += F.dot(dx); }
+    // (called after partner: a contact with a fixed grain is a boundary's, as a wall's: no virial)
+    void virial(const Vec<D>& F, const Vec<D>& dx) {
+      if (!fixed_j) vir += F.dot(dx);
+    }
     void row_done(std::uint32_t) {}
   };
 
@@ -953,7 +991,7 @@ class HybridEngine final : public edm::EdmCore<D, CalendarQueue, HybridEngine<D>
       return a;
     };
     auto pair = [&](const PairEntry& e) {
-      if (!e.touch) return;
+      if (!e.touch || mode_[e.j] == kFixed) return;  // fixed grains join no cluster
       const int a = find(static_cast<int>(e.i)), b = find(static_cast<int>(e.j));
       if (a != b) parent[std::max(a, b)] = std::min(a, b);
     };
@@ -973,6 +1011,7 @@ class HybridEngine final : public edm::EdmCore<D, CalendarQueue, HybridEngine<D>
   // Overlapping particles (and particles overlapping a wall) at t = 0 start soft.
   void hybrid_start() {
     for (int i = 0; i < N_; ++i) {
+      if (mode_[i] == kFixed) continue;  // never soft (a moving grain overlapping it is)
       bool over = false;
       for (const WallShape<D>* W : shapes_) over = over || W->at(hot_[i].x, hot_[i].R, 0.0).gap < 0.0;
       if (!over)
@@ -1075,9 +1114,10 @@ class HybridEngine final : public edm::EdmCore<D, CalendarQueue, HybridEngine<D>
       const bool ni = fz_cand_[e.i], nj = fz_cand_[e.j];
       if (!ni && !nj) return true;
       const StaticForce sf = e.touch ? static_pair_force(e) : StaticForce{};
-      if (mode_[e.i] == kAsleep && mode_[e.j] == kAsleep) {
-        if (!ni) add_share(fz_mix_, fz_tmix_, static_cast<int>(e.i), e, sf, -1.0);
-        if (!nj) add_share(fz_mix_, fz_tmix_, static_cast<int>(e.j), e, sf, -1.0);
+      // Both ends still (asleep or fixed): frozen; a fixed end keeps no balance.
+      if (still(e.i) && still(e.j)) {
+        if (!ni && mode_[e.i] == kAsleep) add_share(fz_mix_, fz_tmix_, static_cast<int>(e.i), e, sf, -1.0);
+        if (!nj && mode_[e.j] == kAsleep) add_share(fz_mix_, fz_tmix_, static_cast<int>(e.j), e, sf, -1.0);
         if (e.touch) pe_sleep_.push_back(e);
         return false;
       }
@@ -1098,6 +1138,8 @@ class HybridEngine final : public edm::EdmCore<D, CalendarQueue, HybridEngine<D>
     for (const int i : fresh_) fz_cand_[i] = 0;
     fresh_.clear();
   }
+
+  bool still(std::uint32_t i) const { return mode_[i] == kAsleep || mode_[i] == kFixed; }
 
   void freeze(int i) {
     mode_[i] = kAsleep;
@@ -1162,7 +1204,7 @@ class HybridEngine final : public edm::EdmCore<D, CalendarQueue, HybridEngine<D>
     std::size_t ks = 0;
     for (const auto& e : pe_sleep_) {
       const bool ai = mode_[e.i] == kAsleep, aj = mode_[e.j] == kAsleep;
-      if (ai && aj) {
+      if (still(e.i) && still(e.j)) {
         pe_sleep_[ks++] = e;
         continue;
       }
@@ -1193,12 +1235,12 @@ class HybridEngine final : public edm::EdmCore<D, CalendarQueue, HybridEngine<D>
       const Vec<D> xj = hot_[j].x;
       const double Rj = hot_[j].R;
       for_neighbours(j, [&](int k, const Vec<D>& shift) {
-        if (mode_[k] != kAsleep) return;
+        if (!still(ui(k))) return;
         const double cut = Rj + hot_[k].R + lskin_;
         if ((xj - hot_[k].x - shift).squaredNorm() >= cut * cut) return;
         if (std::binary_search(moved_.begin(), moved_.end(), pkey(ui(j), ui(k)))) return;
         pairs_.push({ui(j), ui(k), pair_contact_of(j, k), image_of(shift), 0, Vec<D>::Zero()});
-        watch(k);
+        if (mode_[k] == kAsleep) watch(k);
       });
       for (std::size_t w = 0; w < sys_.walls.size(); ++w)
         if (!std::binary_search(moved_w_.begin(), moved_w_.end(), key(ui(j), ui(static_cast<int>(w)))) &&
@@ -1280,6 +1322,7 @@ class HybridEngine final : public edm::EdmCore<D, CalendarQueue, HybridEngine<D>
   std::vector<Spin<D>> fz_tbase_, fz_tmix_;
   std::vector<int> woken_;
   std::vector<int> fresh_, asleep_list_, asleep_slot_;
+  std::vector<int> fixed_list_;  // the fixed grains (kFixed)
   // Soft grid (soft_grid_build): the one cell grid (engine/grid.hpp) over the soft set.
   double sg_w_ = 0.0;
   CellGrid<D> sgrid_;

@@ -65,10 +65,21 @@ class TdmEngine {
   // ---- diagnostics ----
   ThermoSample sample(double time);
   Snapshot<D> snapshot(double time) const;
-  Vec<D> v_full(std::size_t i) const { return soft::full_step<D>(v_[i], f_[i], minv_[i], g_, hdt_); }
-  Spin<D> w_full(std::size_t i) const { return rot_ ? Spin<D>(w_[i] + hdt_ * (tq_[i] * iinv_[i])) : w_[i]; }
+  // A fixed grain (System::fixed) is never integrated: zero velocity and spin, its position kept.
+  bool is_fixed(std::size_t i) const { return n_fixed_ > 0 && fixed_[i] != 0; }
+  Vec<D> v_full(std::size_t i) const {
+    return is_fixed(i) ? Vec<D>::Zero() : soft::full_step<D>(v_[i], f_[i], minv_[i], g_, hdt_);
+  }
+  Spin<D> w_full(std::size_t i) const {
+    if (is_fixed(i)) return Spin<D>::Zero();
+    return rot_ ? Spin<D>(w_[i] + hdt_ * (tq_[i] * iinv_[i])) : w_[i];
+  }
+  // The mass a contact sees: a fixed grain is infinitely heavy, so the pair's m* is the moving
+  // grain's mass (contact/soft.hpp effective_mass with kPlane).
+  double contact_mass(std::size_t i) const { return is_fixed(i) ? kPlane : m_[i]; }
   SoftContact pair_coeffs(std::size_t i, std::size_t j) const {
-    return uniform_ ? cpair_ : pair_contact(plan_, mat_[i], R_[i], m_[i], mat_[j], R_[j], m_[j]);
+    if (uniform_) return is_fixed(i) || is_fixed(j) ? cfixed_ : cpair_;
+    return pair_contact(plan_, mat_[i], R_[i], contact_mass(i), mat_[j], R_[j], contact_mass(j));
   }
   SoftContact wall_coeffs(int w, std::size_t i) const {
     return uniform_ ? cwall_[w] : wall_contact(plan_, w, mat_[i], R_[i], m_[i]);
@@ -85,8 +96,10 @@ class TdmEngine {
   int T_ = 1;
   bool rot_ = false, uniform_ = false;
   NormalLaw law_ = NormalLaw::Linear;  // one law for the whole run (plan_soft checks)
-  SoftContact cpair_;
+  SoftContact cpair_, cfixed_;  // uniform: a pair of moving grains, a moving and a fixed one
   std::vector<SoftContact> cwall_;
+  std::size_t n_fixed_ = 0;
+  std::vector<std::uint8_t> fixed_;  // per particle in storage order (empty: none fixed)
   Vec<D> g_ = Vec<D>::Zero(), L_ = Vec<D>::Zero();
 
   // Particle state in storage order (sorted by cell at every rebuild); id_ maps back.
@@ -124,6 +137,7 @@ class TdmEngine {
   std::vector<double> scratch_dbl_;
   std::vector<int> scratch_int_;
   std::vector<std::uint32_t> scratch_u32_;
+  std::vector<std::uint8_t> scratch_u8_;
 
   // Threads: particle ranges and per-thread accumulators.
   std::vector<std::uint32_t> lo_, hi_, wlo_, whi_;
@@ -169,6 +183,9 @@ SoftPlan preflight(const System<D>& sys, const TdmSettings& set) {
 template <int D>
 void TdmEngine<D>::setup() {
   N_ = sys_.size();
+  sys_.check_fixed();
+  n_fixed_ = sys_.fixed_count();
+  if (n_fixed_ > 0) fixed_ = sys_.fixed;
   plan_ = given_plan_ ? *given_plan_ : preflight(sys_, set_);
   const double dt = set_.dt > 0.0 ? set_.dt : (plan_.default_dt > 0.0 ? plan_.default_dt : set_.end_time);
   // A whole number of steps ends exactly at end_time (the step only shortens).
@@ -211,6 +228,7 @@ void TdmEngine<D>::setup() {
   for (std::size_t i = 1; i < N_ && uniform_; ++i) uniform_ = R_[i] == R_[0] && mat_[i] == mat_[0];
   if (uniform_) {
     cpair_ = pair_contact(plan_, mat_[0], R_[0], m_[0], mat_[0], R_[0], m_[0]);
+    cfixed_ = pair_contact(plan_, mat_[0], R_[0], m_[0], mat_[0], R_[0], kPlane);
     for (int w = 0; w < static_cast<int>(sys_.walls.size()); ++w)
       cwall_.push_back(wall_contact(plan_, w, mat_[0], R_[0], m_[0]));
   }
@@ -310,6 +328,11 @@ void TdmEngine<D>::rebuild() {
   if (rot_) { permute(alpha_, scratch_spin_); }
   permute(R_, scratch_dbl_); permute(m_, scratch_dbl_); permute(minv_, scratch_dbl_); permute(iinv_, scratch_dbl_);
   permute(mat_, scratch_int_); permute(id_, scratch_u32_);
+  if (n_fixed_ > 0) {
+    scratch_u8_.resize(N_);
+    for (std::size_t k = 0; k < N_; ++k) scratch_u8_[k] = fixed_[order_[k]];
+    fixed_.swap(scratch_u8_);
+  }
   // f_ and tq_ are zero between steps (integrate() clears them), so they need no permutation.
   x0_ = x_;
 
@@ -345,7 +368,9 @@ void TdmEngine<D>::rebuild() {
     for (std::uint32_t i = cb; i < ce; ++i) {
       const Vec<D> xi = x_[i];
       const double Ri = R_[i] + skin_;
+      const bool fi = is_fixed(i);  // two fixed grains never meet: no entry
       for (std::uint32_t j = i + 1; j < ce; ++j) {
+        if (fi && fixed_[j]) continue;
         const double cut = Ri + R_[j];
         const Vec<D> dx = xi - x_[j];
         if (dx.squaredNorm() < cut * cut) {
@@ -358,6 +383,7 @@ void TdmEngine<D>::rebuild() {
         const std::uint8_t s = st_shift_[k];
         const Vec<D> xs = xi + shifts_[s];
         for (std::uint32_t j = cell_start_[c2]; j < cell_start_[c2 + 1]; ++j) {
+          if (fi && fixed_[j]) continue;
           const double cut = Ri + R_[j];
           if ((xs - x_[j]).squaredNorm() < cut * cut) {
             nb_.push_back(j);
@@ -385,7 +411,7 @@ void TdmEngine<D>::rebuild() {
   wl_w_.clear();
   const double t_now = static_cast<double>(steps_) * dt_;
   for (std::size_t i = 0; i < N_; ++i)
-    for (std::size_t w = 0; w < shapes_.size(); ++w) {
+    for (std::size_t w = 0; w < shapes_.size() && !is_fixed(i); ++w) {  // a fixed grain meets no wall
       const WallShape<D>& W = *shapes_[w];
       // A moving wall reaches up to twice its stroke beyond where it is now.
       if (W.at(x_[i], R_[i], t_now).gap < skin_ + 2.0 * W.stroke()) {
@@ -440,7 +466,7 @@ struct TdmEngine<D>::RangePolicy {
 
   bool onset() const { return !eng.initial_; }
   const SoftContact& contact(std::uint32_t, std::uint32_t i, std::uint32_t j, SoftContact& scratch) const {
-    if constexpr (Uniform) return eng.cpair_;
+    if constexpr (Uniform) return eng.is_fixed(i) || eng.is_fixed(j) ? eng.cfixed_ : eng.cpair_;
     scratch = eng.pair_coeffs(i, j);
     return scratch;
   }
@@ -472,7 +498,10 @@ struct TdmEngine<D>::RangePolicy {
     // a lower thread range still adds to it: integrate it now and never read it again this step.
     // (The engine's arrays are read here, once per row, rather than held through the row's loop.)
     if constexpr (Fuse) {
-      if (!eng.boundary_[i]) {
+      if (eng.is_fixed(i)) {  // feels forces, never moves
+        eng.f_[i].setZero();
+        if constexpr (Rot) eng.tq_[i].setZero();
+      } else if (!eng.boundary_[i]) {
         moved |= soft::kick_drift<D>(eng.f_[i], eng.acc_[i], eng.v_[i], eng.x_[i], eng.x0_[i], eng.minv_[i], eng.g_,
                                      eng.dt_, eng.half_skin2_);
         if constexpr (Rot) soft::kick_spin(eng.tq_[i], eng.alpha_[i], eng.w_[i], eng.iinv_[i], eng.dt_);
@@ -578,6 +607,11 @@ void TdmEngine<D>::forces(bool fuse) {
 // the skin since the last rebuild (a non-finite position counts as moved).
 template <int D>
 [[gnu::always_inline]] inline bool TdmEngine<D>::integrate_one(std::uint32_t i) {
+  if (is_fixed(i)) {  // feels forces, never moves
+    f_[i].setZero();
+    if (rot_) tq_[i].setZero();
+    return false;
+  }
   const bool moved = soft::kick_drift<D>(f_[i], acc_[i], v_[i], x_[i], x0_[i], minv_[i], g_, dt_, half_skin2_);
   if (rot_) soft::kick_spin(tq_[i], alpha_[i], w_[i], iinv_[i], dt_);
   return moved;
@@ -615,6 +649,7 @@ ThermoSample TdmEngine<D>::sample(double time) {
       const SoftContact c = pair_coeffs(i, j);
       const double delta = Rs - r;
       el += stored(c, delta, rot_ ? xi_[e] : Vec<D>::Zero());
+      if (is_fixed(i) || is_fixed(j)) continue;  // a fixed grain is a boundary, as a wall: no virial
       const double vn = (v_full(i) - v_full(j)).dot(dx) / r;
       vir += r * normal_force(c, delta, -vn);
     }
@@ -629,7 +664,8 @@ ThermoSample TdmEngine<D>::sample(double time) {
   s.potential_energy = pot;
   s.elastic_energy = el;
   s.soft = N_;
-  s.temperature = N_ > 0 ? mv2 / (D * static_cast<double>(N_)) : 0.0;
+  const std::size_t moving = N_ - n_fixed_;  // fixed grains have no kinetic degrees of freedom
+  s.temperature = moving > 0 ? mv2 / (D * static_cast<double>(moving)) : 0.0;
   s.collisions = pair_begun_ + wall_begun_;
   s.pressure = (mv2 + vir) / (D * sys_.volume());
   // The walls' loads: the threads' impulses in thread order, as means over the interval.
@@ -658,6 +694,10 @@ Snapshot<D> TdmEngine<D>::snapshot(double time) const {
     s.v[k] = v_full(i);
     s.w[k] = w_full(i);
     s.radius[k] = R_[i];
+  }
+  if (n_fixed_ > 0) {  // mode 0 for a moving grain, 4 for a fixed one (as the hybrid writes)
+    s.mode.assign(N_, 0);
+    for (std::size_t i = 0; i < N_; ++i) s.mode[id_[i]] = is_fixed(i) ? 4 : 0;
   }
   return s;
 }
@@ -736,9 +776,11 @@ RunResult<D> TdmEngine<D>::run() {
       wl_xi_ = wxi0;
       check_stable();
       // v holds v(t - h/2) between steps.
-      for (std::size_t i = 0; i < N_; ++i) soft::start_half_step(v_[i], f_[i], minv_[i], g_, hdt_);
+      for (std::size_t i = 0; i < N_; ++i)
+        if (!is_fixed(i)) soft::start_half_step(v_[i], f_[i], minv_[i], g_, hdt_);
       if (rot_)
-        for (std::size_t i = 0; i < N_; ++i) soft::start_half_step_spin(w_[i], tq_[i], iinv_[i], hdt_);
+        for (std::size_t i = 0; i < N_; ++i)
+          if (!is_fixed(i)) soft::start_half_step_spin(w_[i], tq_[i], iinv_[i], hdt_);
       emit(0, nsteps == 0);
     }
   }

@@ -1,0 +1,135 @@
+#!/usr/bin/python3
+"""Dynamic angle of repose of the rotating drum (cases/drum.toml) against the Froude number.
+
+  tools/drum_repose.py [--matep build/matep] [--speeds 0.75,1.5,3,4.5] [--methods tdm,hybrid]
+                       [--end 2.0] [--out charts] [--plot-only]
+
+For each rotation speed w and method, runs the drum (wall.drum.rotation.angular_velocity = w) to
+--end seconds and measures the angle of the free surface in every snapshot from t >= --end / 2:
+the grains are binned along x over the middle 60 % of the drum's diameter, the highest grain top
+in each bin marks the surface, and a least-squares line through those points gives the angle
+atan|slope| (degrees). The angle is the mean over the snapshots, its spread their standard deviation.
+Froude number Fr = w^2 R / g. Also reports each run's wall time and the drive's mean power
+-w <torque about the axis> over the second half (thermo.csv's drum_ty).
+Writes OUT/drum_repose.csv and OUT/drum_repose.png.
+"""
+from __future__ import annotations
+
+import argparse
+import csv
+import math
+import statistics
+import sys
+import tempfile
+import xml.etree.ElementTree as ET
+from pathlib import Path
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+from matep_runs import import_pyplot, run_matep, write_csv  # noqa: E402
+
+ROOT = Path(__file__).resolve().parent.parent
+R_DRUM, G = 0.05, 9.81
+
+
+def surface_angle(vtp: Path) -> float | None:
+    root = ET.parse(vtp).getroot()
+    piece = root.find("PolyData/Piece")
+    P = [float(v) for v in piece.find("Points/DataArray").text.split()]
+    rad = None
+    for da in piece.find("PointData").findall("DataArray"):
+        if da.get("Name") == "radius":
+            rad = [float(v) for v in da.text.split()]
+    n = len(P) // 3
+    half = 0.6 * R_DRUM
+    bins = 12
+    top = [None] * bins
+    for i in range(n):
+        x, z = P[3 * i], P[3 * i + 2]
+        if abs(x) >= half:
+            continue
+        b = min(bins - 1, int((x + half) / (2 * half) * bins))
+        h = z + rad[i]
+        if top[b] is None or h > top[b][1]:
+            top[b] = (x, h)
+    pts = [p for p in top if p is not None]
+    if len(pts) < 4:
+        return None
+    mx = statistics.fmean(p[0] for p in pts)
+    mz = statistics.fmean(p[1] for p in pts)
+    sxx = sum((p[0] - mx) ** 2 for p in pts)
+    sxz = sum((p[0] - mx) * (p[1] - mz) for p in pts)
+    return math.degrees(math.atan(abs(sxz / sxx)))
+
+
+def measure(run_dir: Path, end: float, w: float) -> tuple[float, float, float]:
+    angles = []
+    for ds in ET.parse(run_dir / "snapshots.pvd").getroot().iter("DataSet"):
+        if ds.get("part") == "0" and float(ds.get("timestep")) >= 0.5 * end - 1e-9:
+            a = surface_angle(run_dir / ds.get("file"))
+            if a is not None:
+                angles.append(a)
+    with open(run_dir / "thermo.csv") as f:
+        rows = [r for r in csv.DictReader(f) if float(r["time"]) >= 0.5 * end + 1e-9]
+    power = -w * statistics.fmean(float(r["drum_ty"]) for r in rows) if rows else float("nan")
+    return statistics.fmean(angles), (statistics.stdev(angles) if len(angles) > 1 else 0.0), power
+
+
+def plot(rows, png: Path):
+    plt = import_pyplot()
+    fig, ax = plt.subplots(figsize=(6.5, 4.5))
+    for method, style in (("tdm", "o-"), ("hybrid", "s--")):
+        pts = sorted((float(r["froude"]), float(r["angle_deg"]), float(r["angle_sd_deg"])) for r in rows
+                     if r["method"] == method)
+        if pts:
+            ax.errorbar([p[0] for p in pts], [p[1] for p in pts], yerr=[p[2] for p in pts], fmt=style, capsize=3,
+                        label=method.upper() if method == "tdm" else "hybrid")
+    ax.set_xscale("log")
+    ax.set_xlabel("Froude number  w² R / g")
+    ax.set_ylabel("dynamic angle of repose (degrees)")
+    ax.set_title("Rotating drum (cases/drum.toml): free-surface angle")
+    ax.legend()
+    fig.tight_layout()
+    fig.savefig(png, dpi=110)
+
+
+def main() -> int:
+    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("--matep", default=str(ROOT / "build" / "matep"))
+    ap.add_argument("--speeds", default="0.75,1.5,3,4.5")
+    ap.add_argument("--methods", default="tdm,hybrid")
+    ap.add_argument("--end", type=float, default=2.0)
+    ap.add_argument("--out", default=str(ROOT / "charts"))
+    ap.add_argument("--plot-only", action="store_true")
+    a = ap.parse_args()
+    out = Path(a.out)
+    out.mkdir(parents=True, exist_ok=True)
+    csv_path, png_path = out / "drum_repose.csv", out / "drum_repose.png"
+    if a.plot_only:
+        with open(csv_path) as f:
+            plot(list(csv.DictReader(f)), png_path)
+        print(f"wrote {png_path}")
+        return 0
+    rows = []
+    with tempfile.TemporaryDirectory() as tmp:
+        for w in (float(s) for s in a.speeds.split(",")):
+            for method in a.methods.split(","):
+                run = run_matep(a.matep, ROOT / "cases" / "drum.toml",
+                                {"run.method": method, "run.end_time": a.end, "run.threads": 1,
+                                 "wall.drum.rotation.angular_velocity": w, "output.snapshot_interval": 0.1},
+                                Path(tmp) / f"{method}_{w}")
+                if run.summary is None or run.status != "ok":
+                    print(f"w = {w} {method}: {run.status} {run.message}", file=sys.stderr)
+                    continue
+                ang, sd, power = measure(run.out_dir, a.end, w)
+                rows.append({"method": method, "omega": w, "froude": w * w * R_DRUM / G, "angle_deg": ang,
+                             "angle_sd_deg": sd, "power_w": power, "wall_seconds": run.summary["wall_seconds"]})
+                print(f"w = {w:g} rad/s (Fr = {w * w * R_DRUM / G:.4f}) {method}: angle {ang:.1f} +- {sd:.1f} deg, "
+                      f"power {power:.3g} W, {run.summary['wall_seconds']:.1f} s", flush=True)
+    write_csv(csv_path, ["method", "omega", "froude", "angle_deg", "angle_sd_deg", "power_w", "wall_seconds"], rows)
+    plot(rows, png_path)
+    print(f"wrote {csv_path} and {png_path}")
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

@@ -5,10 +5,13 @@
                        [--end 2.0] [--out charts] [--plot-only]
 
 For each rotation speed w and method, runs the drum (wall.drum.rotation.angular_velocity = w) to
---end seconds and measures the angle of the free surface in every snapshot from t >= --end / 2:
-the grains are binned along x over the middle 60 % of the drum's diameter, the highest grain top
-in each bin marks the surface, and a least-squares line through those points gives the angle
-atan|slope| (degrees). The angle is the mean over the snapshots, its spread their standard deviation.
+--end seconds and measures the angle of the free surface in every snapshot (every 0.05 s) from
+t >= --end / 2. The bed of a drum with a flat free surface is a circular segment, whose centroid
+lies on the chord's perpendicular bisector through the drum's centre: the angle of the free
+surface to the horizontal is the angle of the grains' centroid (x_c, z_c), seen from the drum's
+axis, to the vertical, atan(|x_c| / |z_c|). It uses every grain (a fit to the highest grains of a
+slice four grains thick is noisier). The angle is the mean over the snapshots, its spread their
+standard deviation (large in the slumping regime at low Fr, where avalanches come and go).
 Froude number Fr = w^2 R / g. Also reports each run's wall time and the drive's mean power
 -w <torque about the axis> over the second half (thermo.csv's drum_ty).
 Writes OUT/drum_repose.csv and OUT/drum_repose.png.
@@ -28,37 +31,18 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 from matep_runs import import_pyplot, run_matep, write_csv  # noqa: E402
 
 ROOT = Path(__file__).resolve().parent.parent
-R_DRUM, G = 0.05, 9.81
+R_DRUM, G = 0.05, 9.81  # cases/drum.toml's drum radius; gravity
 
 
 def surface_angle(vtp: Path) -> float | None:
     root = ET.parse(vtp).getroot()
-    piece = root.find("PolyData/Piece")
-    P = [float(v) for v in piece.find("Points/DataArray").text.split()]
-    rad = None
-    for da in piece.find("PointData").findall("DataArray"):
-        if da.get("Name") == "radius":
-            rad = [float(v) for v in da.text.split()]
+    P = [float(v) for v in root.find("PolyData/Piece/Points/DataArray").text.split()]
     n = len(P) // 3
-    half = 0.6 * R_DRUM
-    bins = 12
-    top = [None] * bins
-    for i in range(n):
-        x, z = P[3 * i], P[3 * i + 2]
-        if abs(x) >= half:
-            continue
-        b = min(bins - 1, int((x + half) / (2 * half) * bins))
-        h = z + rad[i]
-        if top[b] is None or h > top[b][1]:
-            top[b] = (x, h)
-    pts = [p for p in top if p is not None]
-    if len(pts) < 4:
+    if n == 0:
         return None
-    mx = statistics.fmean(p[0] for p in pts)
-    mz = statistics.fmean(p[1] for p in pts)
-    sxx = sum((p[0] - mx) ** 2 for p in pts)
-    sxz = sum((p[0] - mx) * (p[1] - mz) for p in pts)
-    return math.degrees(math.atan(abs(sxz / sxx)))
+    xc = sum(P[3 * i] for i in range(n)) / n
+    zc = sum(P[3 * i + 2] for i in range(n)) / n
+    return math.degrees(math.atan2(abs(xc), abs(zc)))
 
 
 def measure(run_dir: Path, end: float, w: float) -> tuple[float, float, float]:
@@ -115,7 +99,7 @@ def main() -> int:
             for method in a.methods.split(","):
                 run = run_matep(a.matep, ROOT / "cases" / "drum.toml",
                                 {"run.method": method, "run.end_time": a.end, "run.threads": 1,
-                                 "wall.drum.rotation.angular_velocity": w, "output.snapshot_interval": 0.1},
+                                 "wall.drum.rotation.angular_velocity": w, "output.snapshot_interval": 0.05},
                                 Path(tmp) / f"{method}_{w}")
                 if run.summary is None or run.status != "ok":
                     print(f"w = {w} {method}: {run.status} {run.message}", file=sys.stderr)

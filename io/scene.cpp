@@ -9,12 +9,14 @@
 #include <fstream>
 #include <limits>
 #include <map>
+#include <numbers>
 #include <sstream>
 
 #include <fmt/format.h>
 
 #include "contact/cone.hpp"
 #include "contact/cylinder.hpp"
+#include "contact/pipe.hpp"
 #include "contact/plane_patch.hpp"
 #include "io/placement.hpp"
 #include "io/scene_csv.hpp"
@@ -476,10 +478,72 @@ inline double read_rotation(const TableReader& t) {
   return r.number("angular_velocity");
 }
 
+// type = "pipe": point (the centreline's start), direction, radius, and pieces, an array of
+// ["straight", length] and ["arc", bend_radius, angle_degrees(, [axis])] (contact/pipe.hpp).
+template <int D>
+std::shared_ptr<const WallShape<D>> read_pipe(const TableReader& t) {
+  t.allow({"type", "point", "direction", "radius", "pieces", "material"});
+  const Vec<D> point = to_vec<D>(t.numbers("point", D));
+  const Vec<D> dir = read_direction<D>(t, "direction");
+  const double radius = t.number("radius", kPositive);
+  const toml::node& node = t.need("pieces");
+  const toml::array* a = node.as_array();
+  if (a == nullptr || a->empty())
+    t.fail("pieces", "expected a non-empty array of pieces such as [\"straight\", 0.3] or [\"arc\", 0.1, 180.0]",
+           node);
+  std::vector<PipePiece<D>> pieces;
+  for (std::size_t k = 0; k < a->size(); ++k) {
+    const toml::array* p = a->get(k)->as_array();
+    auto bad = [&](std::string_view why) {
+      t.fail("pieces", fmt::format("piece {}: {}", k, why), node);
+    };
+    if (p == nullptr || p->empty() || !p->get(0)->is_string()) bad("expected [\"straight\", length] or [\"arc\", ...]");
+    const std::string kind = p->get(0)->value<std::string>().value_or("");
+    auto num = [&](std::size_t i, std::string_view what) {
+      if (i >= p->size() || !p->get(i)->is_number()) bad(fmt::format("{} must be a number", what));
+      const double v = p->get(i)->value<double>().value_or(0.0);
+      if (!std::isfinite(v)) bad(fmt::format("{} must be finite", what));
+      return v;
+    };
+    if (kind == "straight") {
+      if (p->size() != 2) bad("a straight piece is [\"straight\", length]");
+      const double L = num(1, "the length");
+      if (!(L > 0.0)) bad(fmt::format("the length must be > 0 (got {})", L));
+      pieces.push_back(PipePiece<D>::straight(L));
+    } else if (kind == "arc") {
+      const std::size_t want = D == 3 ? 4 : 3;
+      if (p->size() != want)
+        bad(D == 3 ? "an arc is [\"arc\", bend_radius, angle_degrees, [axis]] (it turns about axis)"
+                   : "an arc is [\"arc\", bend_radius, angle_degrees] (> 0 turns left)");
+      const double Rb = num(1, "the bend radius"), deg = num(2, "the angle");
+      if (!(Rb > radius)) bad(fmt::format("the bend radius {} must exceed the pipe's radius {}", Rb, radius));
+      if (!(deg != 0.0) || std::abs(deg) > 360.0) bad(fmt::format("the angle must be nonzero, at most 360 degrees (got {})", deg));
+      Vec<D> axis = Vec<D>::Zero();
+      if constexpr (D == 3) {
+        const toml::array* ax = p->get(3)->as_array();
+        if (ax == nullptr || ax->size() != 3) bad("the axis must be an array of 3 numbers");
+        for (int i = 0; i < 3; ++i) {
+          if (!ax->get(static_cast<std::size_t>(i))->is_number()) bad("the axis must be an array of 3 numbers");
+          axis[i] = ax->get(static_cast<std::size_t>(i))->value<double>().value_or(0.0);
+        }
+      }
+      pieces.push_back(PipePiece<D>::arc(Rb, deg * std::numbers::pi / 180.0, axis));
+    } else {
+      bad(fmt::format("unknown kind \"{}\" (expected \"straight\" or \"arc\")", kind));
+    }
+  }
+  try {
+    return std::make_shared<PipeWall<D>>(point, dir, radius, pieces);
+  } catch (const std::invalid_argument& e) {  // e.g. an arc's axis along the pipe's direction
+    t.fail("pieces", e.what(), node);
+  }
+}
+
 // The shape of a [wall.NAME] table (contact/plane.hpp, plane_patch.hpp, cylinder.hpp, cone.hpp).
 template <int D>
 std::shared_ptr<const WallShape<D>> read_wall_shape(const TableReader& t) {
-  const std::string type = t.string("type", {"plane", "cylinder", "cone"});
+  const std::string type = t.string("type", {"plane", "cylinder", "cone", "pipe"});
+  if (type == "pipe") return read_pipe<D>(t);
   if (type == "plane") {
     t.allow({"type", "point", "normal", "material", "oscillation", "patch", "hole", "rotation"});
     const Vec<D> point = to_vec<D>(t.numbers("point", D));

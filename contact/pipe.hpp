@@ -197,12 +197,12 @@ class PipeWall final : public WallShape<D> {
     return best;
   }
   double distance(const Vec<D>& x) const {
-    Vec<D> q, t;
+    Vec<D> q = Vec<D>::Zero(), t = Vec<D>::Zero();
     return distance(x, q, t);
   }
 
   WallPoint<D> at(const Vec<D>& x, double R, double) const override {
-    Vec<D> q, tg;
+    Vec<D> q = Vec<D>::Zero(), tg = Vec<D>::Zero();
     const double d = distance(x, q, tg);
     WallPoint<D> c;
     c.gap = radius_ - R - d;
@@ -380,12 +380,12 @@ class PipeWall final : public WallShape<D> {
   // One piece of the centreline, placed.
   struct Seg {
     bool arc = false;
-    Vec<D> p0, p1, d0, d1;  // end points and unit tangents there
+    Vec<D> p0 = Vec<D>::Zero(), p1 = Vec<D>::Zero(), d0 = Vec<D>::Zero(), d1 = Vec<D>::Zero();  // ends, tangents
     double L = 0.0;         // length (a straight's; a bend's arc length)
     // A bend: centre c, the unit vectors e0 (centre -> start) and e1 (the tangent at the start), the
     // plane normal n = e0 x e1 (3D), radius Rb, angle phi > 0; points c + Rb (cos th e0 + sin th e1),
     // 0 <= th <= phi.
-    Vec<D> c, e0, e1, n;
+    Vec<D> c = Vec<D>::Zero(), e0 = Vec<D>::Zero(), e1 = Vec<D>::Zero(), n = Vec<D>::Zero();
     double Rb = 0.0, phi = 0.0;
 
     // The nearest point q of this piece to x (a straight: the clamped projection; a bend: the point

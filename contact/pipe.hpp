@@ -25,10 +25,10 @@
 // The ends: since d is measured to the nearest centreline point, end points included, beyond an end
 // the surface is a hemispherical cap of radius `radius` (2D: a half-circle) centred on the end
 // point: the shape is a closed vessel and the gap is continuous everywhere. The caps lie beyond the
-// end cross-sections, so a scene that wants open ends closes them with planes through
-// end_point()/start() (or lets the domain end at those cross-sections; then bounds(), which covers
-// the tube up to its end cross-sections and not the caps, still fits); the pictures show the
-// tube without caps. Pieces that come back close to one another (not checked) make the union of
+// end cross-sections, so a scene that wants open ends closes them with planes (through start()
+// with normal direction(), through end_point() with normal -end_direction(), both pointing into the
+// pipe) or lets the domain end at those cross-sections (bounds() covers the tube up to its end
+// cross-sections and not the caps); the pictures show the tube without caps. Pieces that come back close to one another (not checked) make the union of
 // their tubes (d is the distance to the nearest of them).
 // Impact times (contact/shape_features.hpp): the grain touches the wall when its centre reaches
 // distance A = radius - R from the centreline. Per piece, the offset surface is the cylinder

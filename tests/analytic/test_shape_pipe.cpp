@@ -4,16 +4,20 @@
 // height H at x = 0 and x = 2 Rb joined by the half circle of radius Rb around (Rb, H) above them;
 // the caps beyond the leg ends are the distances to the end points), not from the shape's code; the
 // pipe is placed at a random point and orientation, 3D and 2D, straight and parabolic flights from
-// random points inside, and grazing flights that dip in or pass clear by 1e-9 R. Each case runs
-// kQuick flights by default and kLong (10 000) in the *Long* tests.
+// random points inside, and grazing flights that dip in or pass clear by 1e-9 R (built on the
+// convex inner side of the bend, or found among random flights); also a pipe bent in two planes
+// (3D) and an S-channel (2D) whose pieces' centres are worked out by hand. Each case runs kQuick
+// flights by default and kLong (10 000) in the *Long* tests.
 // Engine-level physics: an elastic EDM gas under gravity in a U-tube closed by one plane across both
-// legs keeps its energy and stays inside; a grain at rest on the bottom of a horizontal straight leg
-// has the static Hertz overlap of a flat wall (TDM, 3D and 2D).
+// legs keeps its energy and stays inside (3D and 2D); a grain at rest on the bottom of a horizontal
+// straight leg has the static Hertz overlap of a flat wall (TDM, 3D and 2D).
 #include <gtest/gtest.h>
 
 #include <cmath>
 #include <memory>
 #include <random>
+#include <utility>
+#include <vector>
 
 #include "contact/pipe.hpp"
 #include "engine/edm.hpp"
@@ -177,11 +181,148 @@ void expect_case(const char* name, Gravity grav, int n, std::uint64_t seed) {
   EXPECT_GT(total.hits, total.cases / 2) << name;
 }
 
+// A pipe bent in two planes (3D) or an S-shaped channel (2D), with the pieces' centres and frames
+// worked out by hand from the header's convention (below) for the reference, fixed placement.
+// 3D, radius 0.5, from 0 along z: straight 1 to (0, 0, 1); arc Rb 1, pi / 2 about y (towards
+// y x z = x): centre (1, 0, 1), from (-1, 0, 0) towards (0, 0, 1), ends at (1, 0, 2) heading x; arc
+// Rb 0.8, 2 pi / 3 about z (towards z x x = y): centre (1, 0.8, 2), from (0, -1, 0) towards
+// (1, 0, 0), ends at (1 + 0.4 sqrt 3, 1.2, 2) heading (-1/2, sqrt 3 / 2, 0); straight 1.
+// 2D, radius 0.3, from 0 along x: straight 1; arc Rb 0.6, +pi / 2 (left): centre (1, 0.6), from
+// (0, -1) towards (1, 0), ends at (1.6, 0.6) heading y; arc Rb 0.5, -pi (right): centre (2.1, 0.6),
+// from (-1, 0) towards (0, 1), ends at (2.6, 0.6) heading -y; straight 0.8 to (2.6, -0.2).
+template <int D>
+struct Chain {
+  struct Piece {
+    bool arc = false;
+    VecL<D> p0 = VecL<D>::Zero(), p1 = VecL<D>::Zero(), c = VecL<D>::Zero(), e0 = VecL<D>::Zero(),
+            e1 = VecL<D>::Zero();
+    long double Rb = 0, phi = 0;
+  };
+  std::vector<Piece> pieces;
+  double radius = 0.0;
+  Vec<D> lo, hi;  // a box around it, for starting points
+
+  static VecL<D> v(long double a, long double b, long double c = 0) {
+    VecL<D> r;
+    r[0] = a;
+    r[1] = b;
+    if constexpr (D == 3) r[2] = c;
+    (void)c;
+    return r;
+  }
+  static Piece seg(const VecL<D>& a, const VecL<D>& b) {
+    Piece p;
+    p.p0 = a;
+    p.p1 = b;
+    return p;
+  }
+  static Piece bend(const VecL<D>& c, const VecL<D>& e0, const VecL<D>& e1, long double Rb, long double phi) {
+    Piece p;
+    p.arc = true;
+    p.c = c;
+    p.e0 = e0;
+    p.e1 = e1;
+    p.Rb = Rb;
+    p.phi = phi;
+    p.p0 = c + Rb * e0;
+    p.p1 = c + Rb * (std::cos(phi) * e0 + std::sin(phi) * e1);
+    return p;
+  }
+
+  long double distance(const VecL<D>& x) const {
+    long double best = std::numeric_limits<long double>::infinity();
+    for (const Piece& p : pieces) {
+      long double d;
+      if (!p.arc) {
+        const VecL<D> ab = p.p1 - p.p0;
+        const long double s = std::clamp((x - p.p0).dot(ab) / ab.squaredNorm(), 0.0L, 1.0L);
+        d = (x - p.p0 - s * ab).norm();
+      } else {
+        const VecL<D> r = x - p.c;
+        const long double a = r.dot(p.e0), b = r.dot(p.e1);
+        const long double off = (r - a * p.e0 - b * p.e1).norm();  // out of the bend's plane
+        long double th = std::atan2(b, a);
+        if (th < 0) th += 2 * 3.14159265358979323846264338L;
+        if (th <= p.phi) d = std::hypot(std::hypot(a, b) - p.Rb, off);
+        else d = std::min((x - p.p0).norm(), (x - p.p1).norm());
+      }
+      best = std::min(best, d);
+    }
+    return best;
+  }
+  long double gap(const VecL<D>& x, long double R) const { return radius - R - distance(x); }
+};
+
+template <int D>
+std::pair<PipeWall<D>, Chain<D>> bent_pipe() {
+  using P = PipePiece<D>;
+  using C = Chain<D>;
+  C ch;
+  const long double s3 = std::sqrt(3.0L);
+  if constexpr (D == 3) {
+    ch.radius = 0.5;
+    ch.pieces = {C::seg(C::v(0, 0, 0), C::v(0, 0, 1)), C::bend(C::v(1, 0, 1), C::v(-1, 0, 0), C::v(0, 0, 1), 1, kPi / 2),
+                 C::bend(C::v(1, 0.8L, 2), C::v(0, -1, 0), C::v(1, 0, 0), 0.8L, 2 * kPi / 3),
+                 C::seg(C::v(1 + 0.4L * s3, 1.2L, 2), C::v(1 + 0.4L * s3 - 0.5L, 1.2L + s3 / 2, 2))};
+    ch.lo = Vec<D>(-0.5, -0.5, -0.5);
+    ch.hi = Vec<D>(2.5, 2.5, 2.5);
+    return {PipeWall<D>(Vec<D>::Zero(), Vec<D>(0, 0, 1), 0.5,
+                        {P::straight(1), P::arc(1, kPi / 2, Vec<D>(0, 1, 0)), P::arc(0.8, 2 * kPi / 3, Vec<D>(0, 0, 1)),
+                         P::straight(1)}),
+            ch};
+  } else {
+    ch.radius = 0.3;
+    ch.pieces = {C::seg(C::v(0, 0), C::v(1, 0)), C::bend(C::v(1, 0.6L), C::v(0, -1), C::v(1, 0), 0.6L, kPi / 2),
+                 C::bend(C::v(2.1L, 0.6L), C::v(-1, 0), C::v(0, 1), 0.5L, kPi),
+                 C::seg(C::v(2.6L, 0.6L), C::v(2.6L, -0.2L))};
+    ch.lo = Vec<D>(-0.3, -0.5);
+    ch.hi = Vec<D>(2.9, 1.4);
+    return {PipeWall<D>(Vec<D>::Zero(), Vec<D>(1, 0), 0.3,
+                        {P::straight(1), P::arc(0.6, kPi / 2), P::arc(0.5, -kPi), P::straight(0.8)}),
+            ch};
+  }
+}
+
+template <int D>
+void expect_bent_case(const char* name, Gravity grav, int n, std::uint64_t seed) {
+  const auto [c, ch] = bent_pipe<D>();
+  // The shape's own end point against the hand-worked one.
+  EXPECT_LT((test::to_ld<D>(c.end_point()) - ch.pieces.back().p1).norm(), 1e-14L) << name;
+  const ImpactStats s = test::check_impacts<D>(
+      [&](const Vec<D>& x, const Vec<D>& v, const Vec<D>& g, double R) {
+        const double t = c.impact_time(x, v, g, R, 0.0, kNever);
+        expect_limit_consistent<D>(c, x, v, g, R, t);
+        return t;
+      },
+      [&](const VecL<D>& x, long double R) { return ch.gap(x, R); },
+      [&](std::mt19937_64& rng) {
+        std::uniform_real_distribution<double> u(0.0, 1.0);
+        FlightCase<D> f;
+        for (;;) {
+          f.R = 0.02 + 0.18 * u(rng);
+          for (int k = 0; k < D; ++k) f.x[k] = ch.lo[k] + (ch.hi[k] - ch.lo[k]) * u(rng);
+          f.v = (0.3 + 1.7 * u(rng)) * test::random_unit<D>(rng);
+          f.g = grav == Gravity::On ? Vec<D>((0.5 + 4.5 * u(rng)) * test::random_unit<D>(rng)) : Vec<D>::Zero();
+          if (ch.gap(test::to_ld<D>(f.x), f.R) > 1e-9L) return f;
+        }
+      },
+      n, kTmax, kTol, seed);
+  s.print(name);
+  EXPECT_EQ(s.missed, 0) << name << " " << s.worst_case;
+  EXPECT_EQ(s.early, 0) << name << " " << s.worst_case;
+  EXPECT_LE(s.worst, kTol) << name << " " << s.worst_case;
+  EXPECT_GT(s.hits, s.cases / 2) << name;
+}
+
 void all_cases(int n) {
   expect_case<3>("3D U-tube, straight", Gravity::None, n, 1);
   expect_case<3>("3D U-tube, gravity", Gravity::On, n, 2);
   expect_case<2>("2D U-channel, straight", Gravity::None, n, 3);
   expect_case<2>("2D U-channel, gravity", Gravity::On, n, 4);
+  expect_bent_case<3>("3D pipe bent in two planes, straight", Gravity::None, n, 5);
+  expect_bent_case<3>("3D pipe bent in two planes, gravity", Gravity::On, n, 6);
+  expect_bent_case<2>("2D S-channel, straight", Gravity::None, n, 7);
+  expect_bent_case<2>("2D S-channel, gravity", Gravity::On, n, 8);
 }
 
 TEST(PipeImpact, MatchesTheReference) { all_cases(kQuick); }
@@ -356,51 +497,58 @@ TEST(PipeShape, GeometryBoundsAndInvalidInput) {
 
 // ---- engines ---------------------------------------------------------------------------------
 
-// An elastic EDM gas under gravity (g = 1 down) in a U-tube standing on the plane z = 0, which
-// closes both legs: kinetic plus potential energy is conserved to 1e-10 and no grain leaves the
-// tube (every 0.1 s and at the end).
-TEST(PipeEngines, ElasticEdmGasInAClosedUTubeKeepsItsEnergyAndStaysInside) {
-  const double R = 0.04;
-  const UTube<3> u{Vec<3>::Zero(), Vec<3>(0, 0, 1), Vec<3>(1, 0, 0)};
-  auto shape = std::make_shared<PipeWall<3>>(u.shape());
-  System<3> s = test::hard_material_system<3>(Vec<3>(-0.7, -0.7, -0.2), Vec<3>(2.7, 0.7, 3.7));
-  s.gravity = Vec<3>(0, 0, -1.0);
-  s.walls.push_back(Wall<3>{"pipe", 0, shape});
-  s.walls.push_back(plane_wall<3>("floor", Vec<3>::Zero(), Vec<3>(0, 0, 1)));
-  test::fill_gas<3>(s, 80, R, [&](const Vec<3>& x) { return x[2] > 1.5 * R && shape->at(x, R, 0.0).gap > 0.5 * R; },
+// An elastic EDM gas under gravity (g = 1 down) in a U-tube standing on the plane z = 0 (2D: a
+// U-channel on y = 0), which closes both legs: kinetic plus potential energy is conserved to 1e-10
+// and no grain leaves the tube (every 0.1 s and at the end).
+template <int D>
+void check_edm_gas_in_utube(int n, double R) {
+  const Vec<D> up = test::up_axis<D>(), side = test::axis_x<D>();
+  const UTube<D> u{Vec<D>::Zero(), up, side};
+  auto shape = std::make_shared<PipeWall<D>>(u.shape());
+  Vec<D> lo = Vec<D>::Constant(-0.7), hi = Vec<D>::Constant(0.7);
+  lo[D - 1] = -0.2;
+  hi[0] = 2.7;
+  hi[D - 1] = 3.7;
+  System<D> s = test::hard_material_system<D>(lo, hi);
+  s.gravity = -1.0 * up;
+  s.walls.push_back(Wall<D>{"pipe", 0, shape});
+  s.walls.push_back(plane_wall<D>("floor", Vec<D>::Zero(), up));
+  test::fill_gas<D>(s, n, R, [&](const Vec<D>& x) { return x[D - 1] > 1.5 * R && shape->at(x, R, 0.0).gap > 0.5 * R; },
                     5);
-  struct Snap final : Observer<3> {
-    const WallShape<3>* shape = nullptr;
+  struct Snap final : Observer<D> {
+    const WallShape<D>* shape = nullptr;
     double R = 0.0, worst = 0.0;
     bool wants_snapshots() const override { return true; }
-    void on_snapshot(const Snapshot<3>& sn) override {
-      for (const auto& x : sn.x) worst = std::max({worst, -shape->at(x, R, sn.time).gap, R - x[2]});
+    void on_snapshot(const Snapshot<D>& sn) override {
+      for (const auto& x : sn.x) worst = std::max({worst, -shape->at(x, R, sn.time).gap, R - x[D - 1]});
     }
   } snap;
   snap.shape = shape.get();
   snap.R = R;
   EdmSettings es;
-  es.end_time = 10.0;
+  es.end_time = 20.0;
   es.snapshot_interval = 0.1;
-  const RunResult<3> r = run_edm<3>(s, es, QueueKind::Calendar, {&snap});
+  const RunResult<D> r = run_edm<D>(s, es, QueueKind::Calendar, {&snap});
   ASSERT_EQ(r.status, "ok") << r.message;
-  auto energy = [&](const std::vector<Vec<3>>& x, const std::vector<Vec<3>>& v) {
+  auto energy = [&](const std::vector<Vec<D>>& x, const std::vector<Vec<D>>& v) {
     double e = 0.0;
     for (std::size_t i = 0; i < x.size(); ++i) e += 0.5 * v[i].squaredNorm() - s.gravity.dot(x[i]);
     return e;
   };
   const double ratio = energy(r.x, r.v) / energy(s.x, s.v);
   double worst = snap.worst;
-  for (const auto& x : r.x) worst = std::max({worst, -shape->at(x, R, r.time).gap, R - x[2]});
-  std::printf("EDM gas in a closed U-tube: %zu grains, %llu wall collisions, energy ratio - 1 = %.3g, worst overlap "
-              "%.3g\n",
-              s.size(), static_cast<unsigned long long>(r.counts.wall), ratio - 1.0, worst);
-  EXPECT_GE(s.size(), 80u);
+  for (const auto& x : r.x) worst = std::max({worst, -shape->at(x, R, r.time).gap, R - x[D - 1]});
+  std::printf("EDM gas in a closed U-tube (%dD): %zu grains, %llu wall collisions, energy ratio - 1 = %.3g, worst "
+              "overlap %.3g\n",
+              D, s.size(), static_cast<unsigned long long>(r.counts.wall), ratio - 1.0, worst);
+  EXPECT_EQ(static_cast<int>(s.size()), n);
   EXPECT_NEAR(ratio, 1.0, 1e-10);
   EXPECT_LT(worst, 1e-12);
   EXPECT_LT(r.max_overlap, 1e-12);
-  EXPECT_GT(r.counts.wall, 500u);
+  EXPECT_GT(r.counts.wall, 1000u);
 }
+TEST(PipeEngines, ElasticEdmGasInAClosedUTubeKeepsItsEnergyAndStaysInside3D) { check_edm_gas_in_utube<3>(80, 0.04); }
+TEST(PipeEngines, ElasticEdmGasInAClosedUChannelKeepsItsEnergyAndStaysInside2D) { check_edm_gas_in_utube<2>(40, 0.04); }
 
 // A grain at rest on the bottom of a horizontal straight leg (a U lying flat: legs along x, the bend
 // turning about z; 2D: a channel along x bending up): the static Hertz overlap of a flat wall,

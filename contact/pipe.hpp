@@ -42,7 +42,8 @@
 // first closing of the pipe's gap happens at the nearest piece, at a root of that piece's feature
 // (the pieces join tangentially, so a point nearest to a joint lies in the common cross-section and
 // both pieces see it as an interior point), hence the earliest accepted root is the impact; it is
-// refined on the gap of at().
+// refined on the gap of at(). "Closed to round-off" is gap <= 1e-12 (radius + the size of the
+// pipe's box): a flight that passes the wall closer than that counts as touching it.
 // bracketed() is true: the engine passes its earliest event so far as the limit, and a flight that
 // cannot reach the surface before it (gap > |v| limit + |g| limit^2 / 2) costs one at() call.
 // has_normal: every unit vector (the caps and bends give all directions).

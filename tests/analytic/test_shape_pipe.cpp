@@ -10,7 +10,7 @@
 // flights by default and kLong (10 000) in the *Long* tests.
 // Engine-level physics: an elastic EDM gas under gravity in a U-tube closed by one plane across both
 // legs keeps its energy and stays inside (3D and 2D); a grain at rest on the bottom of a horizontal
-// straight leg has the static Hertz overlap of a flat wall (TDM, 3D and 2D).
+// straight leg has the static Hertz overlap of a flat wall (TDM 3D and 2D, hybrid 3D).
 #include <gtest/gtest.h>
 
 #include <cmath>
@@ -21,6 +21,7 @@
 
 #include "contact/pipe.hpp"
 #include "engine/edm.hpp"
+#include "engine/hybrid.hpp"
 #include "engine/tdm.hpp"
 #include "tests/support/shape_check.hpp"
 #include "tests/support/shape_physics.hpp"
@@ -554,15 +555,17 @@ TEST(PipeEngines, ElasticEdmGasInAClosedUChannelKeepsItsEnergyAndStaysInside2D) 
 // turning about z; 2D: a channel along x bending up): the static Hertz overlap of a flat wall,
 // m g = (4/3) E* sqrt(R*) delta^(3/2) with R* = R, since the engines' wall contacts take R* = R for
 // every shape (engine/soft_plan.cpp wall_contact; see test_shape_cylinder.cpp).
-TEST(PipeEngines, GrainAtRestInAStraightLegHasTheStaticHertzOverlapTdm3D) {
+void check_static_overlap_3d(bool hybrid) {
   const double rp = 0.2;
   auto shape = std::make_shared<PipeWall<3>>(
       Vec<3>::Zero(), Vec<3>(1, 0, 0), rp,
       std::vector<PipePiece<3>>{PipePiece<3>::straight(1.0), PipePiece<3>::arc(0.4, kPi, Vec<3>(0, 0, 1)),
                                 PipePiece<3>::straight(1.0)});
   test::expect_static_hertz_overlap<3>(shape, Vec<3>(0.5, 0, -(rp - test::kGrainR)), Vec<3>(0, 0, 1),
-                                       Vec<3>(0, 0, -test::kG), false);
+                                       Vec<3>(0, 0, -test::kG), hybrid);
 }
+TEST(PipeEngines, GrainAtRestInAStraightLegHasTheStaticHertzOverlapTdm3D) { check_static_overlap_3d(false); }
+TEST(PipeEngines, GrainAtRestInAStraightLegHasTheStaticHertzOverlapHybrid3D) { check_static_overlap_3d(true); }
 TEST(PipeEngines, GrainAtRestInAStraightLegHasTheStaticHertzOverlapTdm2D) {
   const double rp = 0.2;
   auto shape = std::make_shared<PipeWall<2>>(

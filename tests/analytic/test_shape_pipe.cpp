@@ -434,6 +434,10 @@ TEST(PipeImpact, ClosedFormFlights) {
   // at z = 3 + A, the inner one at z = 3 - A.
   EXPECT_NEAR(c.impact_time(Vec<3>(1, 0, 2.8), Vec<3>(0, 0, 1), Vec<3>::Zero(), R, 0.0, kNever), 0.2 + A, 1e-14);
   EXPECT_NEAR(c.impact_time(Vec<3>(1, 0, 3.2), Vec<3>(0, 0, -1), Vec<3>::Zero(), R, 0.0, kNever), 0.2 + A, 1e-14);
+  // Within the cross-section z = 2 where the first leg joins the bend (both pieces' nearest points
+  // on their common end circle): outwards, sideways and towards the bend's centre, the wall at A.
+  for (const Vec<3>& d : {Vec<3>(-1, 0, 0), Vec<3>(0, 1, 0), Vec<3>(0.6, -0.8, 0), Vec<3>(1, 0, 0)})
+    EXPECT_NEAR(c.impact_time(Vec<3>(0, 0, 2), d, Vec<3>::Zero(), R, 0.0, kNever), A, 1e-15) << d.transpose();
   // Overlapping by round-off and approaching: now; receding: crosses the leg.
   const Vec<3> x(A + 1e-16, 0, 1);
   EXPECT_EQ(c.impact_time(x, Vec<3>(1, 0.2, 0), Vec<3>::Zero(), R, 0.0, kNever), 0.0);

@@ -333,7 +333,7 @@ class PipeWall final : public WallShape<D> {
         tan = {s.d0, s.d0};
         return;
       }
-      const int n = std::max(2, static_cast<int>(std::ceil(s.phi / (kPi / 24.0)))) ;
+      const int n = std::max(2, static_cast<int>(std::ceil(s.phi / (kPi / 24.0))));
       for (int j = 0; j <= n; ++j) {
         const double th = s.phi * j / n;
         pts.push_back(s.c + s.Rb * (std::cos(th) * s.e0 + std::sin(th) * s.e1));

@@ -57,6 +57,18 @@ inline double wrap_periodic(double x, double lo, double hi) {
   return y;
 }
 
+// A hashed cell's key: its (non-negative) coordinates mixed by a multiply-xorshift finaliser (after
+// splitmix64); the caller masks it to its table's power-of-two size (CellGrid, placement's grid).
+template <class Int, std::size_t N>
+std::uint64_t cell_hash(const std::array<Int, N>& c) {
+  std::uint64_t h = 0;
+  for (std::size_t k = 0; k < N; ++k) h = (h ^ static_cast<std::uint64_t>(c[k])) * 0x9E3779B97F4A7C15ull;
+  h ^= h >> 31;
+  h *= 0xBF58476D1CE4E5B9ull;
+  h ^= h >> 27;
+  return h;
+}
+
 template <int D>
 class CellGrid {
  public:
@@ -306,16 +318,7 @@ class CellGrid {
   int cells_ = 1;
   bool hashed_ = false;
   std::uint64_t mask_ = 0;
-  // A cell's bucket: its coordinates mixed (a multiply-xorshift finaliser, after splitmix64) and
-  // masked to the table's power-of-two size.
-  int bucket(const std::array<int, D>& c) const {
-    std::uint64_t h = 0;
-    for (int k = 0; k < D; ++k) h = (h ^ static_cast<std::uint64_t>(static_cast<std::uint32_t>(c[k]))) * 0x9E3779B97F4A7C15ull;
-    h ^= h >> 31;
-    h *= 0xBF58476D1CE4E5B9ull;
-    h ^= h >> 27;
-    return static_cast<int>(h & mask_);
-  }
+  int bucket(const std::array<int, D>& c) const { return static_cast<int>(cell_hash(c) & mask_); }
   std::vector<int> offsets_all_;
   std::array<std::vector<int>, 2 * D> offsets_layer_;
 };

@@ -5,6 +5,8 @@
 #include <limits>
 #include <numbers>
 
+#include "engine/grid.hpp"
+
 namespace matep::placement {
 
 // ------------------------------------------------------------------------------------- Rng
@@ -97,14 +99,7 @@ std::array<std::int64_t, D> OverlapGrid<D>::cell_of(const Vec<D>& x) const {
 
 template <int D>
 std::size_t OverlapGrid<D>::flat(const std::array<std::int64_t, D>& c) const {
-  if (hashed_) {  // a multiply-xorshift mix of the coordinates (engine/grid.hpp's bucket)
-    std::uint64_t h = 0;
-    for (int k = 0; k < D; ++k) h = (h ^ static_cast<std::uint64_t>(c[k])) * 0x9E3779B97F4A7C15ull;
-    h ^= h >> 31;
-    h *= 0xBF58476D1CE4E5B9ull;
-    h ^= h >> 27;
-    return static_cast<std::size_t>(h & mask_);
-  }
+  if (hashed_) return static_cast<std::size_t>(cell_hash(c) & mask_);  // engine/grid.hpp
   std::size_t f = 0;
   for (int k = D - 1; k >= 0; --k) f = f * static_cast<std::size_t>(n_[k]) + static_cast<std::size_t>(c[k]);
   return f;

@@ -26,23 +26,12 @@ namespace {
 using test::FlightCase;
 using test::ImpactStats;
 using test::VecL;
+using test::expect_limit_consistent;
 
 constexpr int kQuick = 2000;
 constexpr int kLong = 10000;
 constexpr double kTmax = 3.0;
 constexpr double kTol = 1e-10;
-
-// impact_time with a finite limit (the engine passes its earliest event so far; the shapes are
-// bracketed()): the same time when it lies before the limit, kNever when not.
-template <class S, int D>
-void expect_limit_consistent(const S& shape, const Vec<D>& x, const Vec<D>& v, const Vec<D>& g, double R, double t) {
-  if (t < kNever && t > 0.0) {
-    EXPECT_NEAR(shape.impact_time(x, v, g, R, 0.0, t * (1.0 + 1e-6)), t, 1e-12 * t);
-    EXPECT_EQ(shape.impact_time(x, v, g, R, 0.0, t * (1.0 - 1e-6)), kNever);
-  } else if (!(t < kNever)) {
-    EXPECT_EQ(shape.impact_time(x, v, g, R, 0.0, 2.0), kNever);
-  }
-}
 
 enum class Outline { Disk, Rectangle };
 

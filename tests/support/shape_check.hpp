@@ -10,6 +10,9 @@
 #include <random>
 #include <string>
 
+#include <gtest/gtest.h>
+
+#include "contact/predict.hpp"
 #include "contact/vec.hpp"
 #include "tests/support/impact_reference.hpp"
 
@@ -167,6 +170,18 @@ bool make_graze(FlightCase<D>& c, GapLD&& gap_ld, Normal&& normal, double t_wind
     c.x -= err * normal(xT, c.R);
   }
   return false;
+}
+
+// impact_time with a finite limit (the engine passes its earliest event so far; the shapes are
+// bracketed()): the same time when it lies before the limit, kNever when not.
+template <class S, int D>
+void expect_limit_consistent(const S& shape, const Vec<D>& x, const Vec<D>& v, const Vec<D>& g, double R, double t) {
+  if (t < kNever && t > 0.0) {
+    EXPECT_NEAR(shape.impact_time(x, v, g, R, 0.0, t * (1.0 + 1e-6)), t, 1e-12 * t);
+    EXPECT_EQ(shape.impact_time(x, v, g, R, 0.0, t * (1.0 - 1e-6)), kNever);
+  } else if (!(t < kNever)) {
+    EXPECT_EQ(shape.impact_time(x, v, g, R, 0.0, 2.0), kNever);
+  }
 }
 
 }  // namespace matep::test

@@ -108,6 +108,28 @@ std::pair<double, double> axial_range(const Vec<D>& point, const Vec<D>& axis, c
 }
 
 template <int D>
+class WallShape;
+
+// One feature of a multi-contact shape seen as a shape of its own (at, surface_velocity): what the
+// soft path's wall_contact (engine/soft/forces.hpp) takes.
+template <int D>
+struct FeatureView {
+  const WallShape<D>& shape;
+  std::uint32_t feature;
+  WallPoint<D> at(const Vec<D>& x, double R, double t) const { return shape.at_feature(x, R, t, feature); }
+  Vec<D> surface_velocity(const Vec<D>& x, double R, double t) const {
+    return shape.feature_velocity(x, R, t, feature);
+  }
+};
+
+// A wall-list entry's wall and feature in one 32-bit slot (the soft engines' springs are keyed by
+// particle and slot): at most kMaxWalls walls, 2^22 features per wall.
+inline constexpr std::uint32_t kWallBits = 10, kMaxWalls = 1u << kWallBits, kMaxFeatures = 1u << (32 - kWallBits);
+inline std::uint32_t wall_slot(std::uint32_t wall, std::uint32_t feature) { return wall | (feature << kWallBits); }
+inline std::uint32_t slot_wall(std::uint32_t slot) { return slot & (kMaxWalls - 1); }
+inline std::uint32_t slot_feature(std::uint32_t slot) { return slot >> kWallBits; }
+
+template <int D>
 class WallShape {
  public:
   virtual ~WallShape() = default;
@@ -161,6 +183,32 @@ class WallShape {
     (void)lo;
     (void)hi;
     (void)out;
+  }
+
+  // Shapes made of several parts that a grain may touch at once (a triangle mesh's facets,
+  // contact/mesh.hpp): multi_contact() is true and the soft engines keep one contact per part
+  // (feature) within their list reach, each with its own spring. features_near appends the
+  // features whose gap may be below `reach`; at_feature gives one feature's contact (gap = kNever
+  // where that feature does not own the contact at x); feature_velocity its surface velocity.
+  // A shape with one contact per grain keeps the defaults (one feature, number 0).
+  virtual bool multi_contact() const { return false; }
+  virtual void features_near(const Vec<D>& x, double R, double reach, double t, std::vector<std::uint32_t>& out) const {
+    if (at(x, R, t).gap < reach) out.push_back(0);
+  }
+  virtual WallPoint<D> at_feature(const Vec<D>& x, double R, double t, std::uint32_t feature) const {
+    (void)feature;
+    return at(x, R, t);
+  }
+  virtual Vec<D> feature_velocity(const Vec<D>& x, double R, double t, std::uint32_t feature) const {
+    (void)feature;
+    return surface_velocity(x, R, t);
+  }
+  // EDM: the contact of a collision predicted by impact_time (x, v: the particle at the impact).
+  // A shape that can be touched at several points at once (a mesh's concave corner) returns the
+  // one the particle approaches fastest; the others at() (the nearest surface point).
+  virtual WallPoint<D> at_impact(const Vec<D>& x, const Vec<D>& v, double R, double t) const {
+    (void)v;
+    return at(x, R, t);
   }
 
   // Whether n is the wall's normal at some point of its surface (within tol): `matep log verify`

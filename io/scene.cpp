@@ -16,11 +16,13 @@
 
 #include "contact/cone.hpp"
 #include "contact/cylinder.hpp"
+#include "contact/mesh.hpp"
 #include "contact/pipe.hpp"
 #include "contact/plane_patch.hpp"
 #include "io/placement.hpp"
 #include "io/scene_csv.hpp"
 #include "io/scene_toml.hpp"
+#include "io/stl.hpp"
 
 namespace matep {
 
@@ -539,11 +541,47 @@ std::shared_ptr<const WallShape<D>> read_pipe(const TableReader& t) {
   }
 }
 
-// The shape of a [wall.NAME] table (contact/plane.hpp, plane_patch.hpp, cylinder.hpp, cone.hpp).
+// type = "mesh": file (an STL file, relative to the scene's folder), scale (a factor, e.g. 0.001
+// for a CAD file in millimetres), translate (added after scaling) (contact/mesh.hpp, io/stl.hpp).
 template <int D>
-std::shared_ptr<const WallShape<D>> read_wall_shape(const TableReader& t) {
-  const std::string type = t.string("type", {"plane", "cylinder", "cone", "pipe"});
+std::shared_ptr<const WallShape<D>> read_mesh(const TableReader& t, const fs::path& base_dir) {
+  t.allow({"type", "file", "scale", "translate", "material"});
+  if constexpr (D == 2) {
+    t.fail("type", "a mesh wall is a 3D triangle surface (STL); a 2D scene uses planes, patches and pipes",
+           t.need("type"));
+  } else {
+    const std::string value = t.string("file");
+    fs::path p(value);
+    if (p.is_relative()) p = base_dir / p;
+    const std::string path = p.lexically_normal().string();
+    const double scale = t.number_or("scale", 1.0, kPositive);
+    const Vec<3> shift = t.has("translate") ? to_vec<3>(t.numbers("translate", 3)) : Vec<3>::Zero();
+    StlMesh m;
+    try {
+      m = read_stl(path);
+    } catch (const std::runtime_error& e) {
+      t.fail("file", fmt::format("{}: {}", path, e.what()), t.need("file"));
+    }
+    for (Vec<3>& x : m.vertices) x = scale * x + shift;
+    if (m.triangles.size() >= kMaxFeatures)
+      t.fail("file", fmt::format("{}: {} triangles, more than a mesh wall holds ({})", path, m.triangles.size(),
+                                 kMaxFeatures - 1),
+             t.need("file"));
+    try {
+      return std::make_shared<MeshWall>(std::move(m.vertices), std::move(m.triangles));
+    } catch (const std::invalid_argument& e) {
+      t.fail("file", fmt::format("{}: {}", path, e.what()), t.need("file"));
+    }
+  }
+}
+
+// The shape of a [wall.NAME] table (contact/plane.hpp, plane_patch.hpp, cylinder.hpp, cone.hpp,
+// pipe.hpp, mesh.hpp).
+template <int D>
+std::shared_ptr<const WallShape<D>> read_wall_shape(const TableReader& t, const fs::path& base_dir) {
+  const std::string type = t.string("type", {"plane", "cylinder", "cone", "pipe", "mesh"});
   if (type == "pipe") return read_pipe<D>(t);
+  if (type == "mesh") return read_mesh<D>(t, base_dir);
   if (type == "plane") {
     t.allow({"type", "point", "normal", "material", "oscillation", "patch", "hole", "rotation"});
     const Vec<D> point = to_vec<D>(t.numbers("point", D));
@@ -663,13 +701,16 @@ void build_system(const TableReader& top, const TableReader& run, const fs::path
   for (const auto& [name, t] : named_tables(top, "wall")) {
     std::shared_ptr<const WallShape<D>> shape;
     try {
-      shape = read_wall_shape<D>(t);
+      shape = read_wall_shape<D>(t, base_dir);
     } catch (const std::invalid_argument& e) {  // a shape's own check of its parameters
       fail(file, fmt::format("wall.{}", name), e.what());
     }
     sys.walls.push_back(Wall<D>{name, 0, std::move(shape)});
     sys.walls.back().material = material_index(t, sys.materials);
   }
+  if (sys.walls.size() > kMaxWalls)
+    fail(file, "wall", fmt::format("{} walls; a scene holds at most {} (join planes into a mesh)", sys.walls.size(),
+                                   kMaxWalls));
   check_walls_fit<D>(file, sys);
 
   // [particles.NAME]: read and validate every group, then place the groups with fixed positions

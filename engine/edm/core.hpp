@@ -678,7 +678,7 @@ class EdmCore {
   void collide_wall(int i, int w) {
     Hot<D>& a = hot_[i];
     const auto& wall = sys_.walls[w];
-    const WallPoint<D> c = wall.geometry().at(a.x, a.R, now_);
+    const WallPoint<D> c = wall.geometry().at_impact(a.x, a.v, a.R, now_);
     if (wall_checkpoint(i, wall.geometry(), c)) return;
     const Vec<D>& u = c.velocity;
     const Vec<D>& normal = c.normal;

@@ -186,6 +186,7 @@ class HybridEngine final : public edm::EdmCore<D, CalendarQueue, HybridEngine<D>
   using PairEntry = soft::PairEntry<D>;  // owner i, partner j, constants ctab_[c], image shift sh
   struct WallEntry {
     int i, w;
+    std::uint32_t f;  // the wall's feature (contact/wall.hpp; 0 but for a mesh)
     std::uint32_t c;
     std::uint8_t touch;
     Vec<D> xi;
@@ -333,7 +334,7 @@ class HybridEngine final : public edm::EdmCore<D, CalendarQueue, HybridEngine<D>
 
   bool soft_rule_wall(int i, int w, double t) {
     const WallShape<D>& wall = *shapes_[w];
-    const WallPoint<D> c = wall.at(hot_[i].x, hot_[i].R, t);
+    const WallPoint<D> c = wall.at_impact(hot_[i].x, hot_[i].v, hot_[i].R, t);
     if (wall_checkpoint(i, wall, c)) return false;  // a checkpoint of the bracketing, not an impact
     const double un = (hot_[i].v - c.velocity).dot(c.normal);
     // Resting on the wall (no normal speed left) is the zero-time limit of a bouncing sequence.
@@ -524,7 +525,7 @@ class HybridEngine final : public edm::EdmCore<D, CalendarQueue, HybridEngine<D>
       if (e.touch) mem.remember_pair(e.i, e.j, e.xi);
     });
     for (const auto& e : we_)
-      if (e.touch) mem.remember_wall(ui(e.i), ui(e.w), e.xi);
+      if (e.touch) mem.remember_wall(ui(e.i), wall_slot(ui(e.w), e.f), e.xi);
     mem.sort();
     pairs_.clear();
     we_.clear();
@@ -550,7 +551,7 @@ class HybridEngine final : public edm::EdmCore<D, CalendarQueue, HybridEngine<D>
       const std::size_t w0 = we_.size();
       add_walls_only(i, t);
       for (std::size_t k = w0; k < we_.size(); ++k)
-        if (mem.recall_wall(ui(i), ui(we_[k].w), we_[k].xi)) we_[k].touch = 1;
+        if (mem.recall_wall(ui(i), wall_slot(ui(we_[k].w), we_[k].f), we_[k].xi)) we_[k].touch = 1;
     }
     dirty_ = false;
   }
@@ -648,7 +649,7 @@ class HybridEngine final : public edm::EdmCore<D, CalendarQueue, HybridEngine<D>
   }
   StaticForce static_wall_force(const WallEntry& e, double t) const {
     StaticForce out;
-    const WallPoint<D> c = shapes_[e.w]->at(hot_[e.i].x, hot_[e.i].R, t);
+    const WallPoint<D> c = shapes_[e.w]->at_feature(hot_[e.i].x, hot_[e.i].R, t, e.f);
     out.delta = -c.gap;
     if (!(out.delta > 0.0)) return out;
     ContactKinematics<D> k;
@@ -669,14 +670,25 @@ class HybridEngine final : public edm::EdmCore<D, CalendarQueue, HybridEngine<D>
     if (rot_) tq[k] += s * (own ? sf.ti : sf.tj);
   }
   void add_walls_only(int i, double t) {
-    for (std::size_t w = 0; w < sys_.walls.size(); ++w)
-      if (wall_in_reach(i, static_cast<int>(w), t))
-        we_.push_back({i, static_cast<int>(w), wall_contact_of(static_cast<int>(w), i), 0, Vec<D>::Zero()});
+    walls_in_reach(i, t, [&](int w, std::uint32_t f) {
+      we_.push_back({i, w, f, wall_contact_of(w, i), 0, Vec<D>::Zero()});
+    });
   }
-  // Whether wall w is within the list skin of i (a moving wall: plus twice its stroke).
-  bool wall_in_reach(int i, int w, double t) const {
-    const WallShape<D>& W = *shapes_[w];
-    return W.at(hot_[i].x, hot_[i].R, t).gap < lskin_ + 2.0 * W.stroke();
+  // Calls fn(w, feature) for each wall (each feature of a multi-contact wall) within the list skin
+  // of i (a moving wall: plus twice its stroke).
+  template <class Fn>
+  void walls_in_reach(int i, double t, Fn&& fn) {
+    for (std::size_t w = 0; w < shapes_.size(); ++w) {
+      const WallShape<D>& W = *shapes_[w];
+      const double reach = lskin_ + 2.0 * W.stroke();
+      if (W.multi_contact()) {
+        feats_.clear();
+        W.features_near(hot_[i].x, hot_[i].R, reach, t, feats_);
+        for (const std::uint32_t f : feats_) fn(static_cast<int>(w), f);
+      } else if (W.at(hot_[i].x, hot_[i].R, t).gap < reach) {
+        fn(static_cast<int>(w), 0u);
+      }
+    }
   }
 
   // Moves soft i into its cell after a substep that took it out of its cell's box (cblo_, cbhi_;
@@ -945,7 +957,7 @@ class HybridEngine final : public edm::EdmCore<D, CalendarQueue, HybridEngine<D>
     for (auto& e : we_) {
       const int i = e.i;
       bool began = false;
-      const soft::WallContact<D> c = walls_.with_wall(e.w, [&](const auto& shape) {
+      const soft::WallContact<D> c = walls_.with_wall(e.w, e.f, [&](const auto& shape) {
         return soft::wall_contact<D, Law, Rot>(shape, wall_t_, h, onset_ok, hot_[i].x, hot_[i].R, vh_[i], acc_[i],
                                                Rot ? wh_[i] : no_spin, Rot ? alpha_[i] : no_spin, ctab_[e.c], e.touch,
                                                e.xi, began, f_[i], Rot ? tq_[i] : tq_none);
@@ -976,7 +988,7 @@ class HybridEngine final : public edm::EdmCore<D, CalendarQueue, HybridEngine<D>
     for (const auto* list : {&we_, &we_sleep_})
     for (const auto& e : *list) {
       if (!e.touch) continue;
-      const double delta = -shapes_[e.w]->at(hot_[e.i].x, hot_[e.i].R, hot_[e.i].t).gap;
+      const double delta = -shapes_[e.w]->at_feature(hot_[e.i].x, hot_[e.i].R, hot_[e.i].t, e.f).gap;
       if (delta > 0.0) el += stored(ctab_[e.c], delta, e.xi);
     }
     return el;
@@ -1224,7 +1236,7 @@ class HybridEngine final : public edm::EdmCore<D, CalendarQueue, HybridEngine<D>
         we_sleep_[kw++] = e;
       } else {
         we_.push_back(e);
-        moved_w_.push_back(key(ui(e.i), ui(e.w)));
+        moved_w_.push_back(key(ui(e.i), wall_slot(ui(e.w), e.f)));
       }
     }
     we_sleep_.resize(kw);
@@ -1242,10 +1254,10 @@ class HybridEngine final : public edm::EdmCore<D, CalendarQueue, HybridEngine<D>
         pairs_.push({ui(j), ui(k), pair_contact_of(j, k), image_of(shift), 0, Vec<D>::Zero()});
         if (mode_[k] == kAsleep) watch(k);
       });
-      for (std::size_t w = 0; w < sys_.walls.size(); ++w)
-        if (!std::binary_search(moved_w_.begin(), moved_w_.end(), key(ui(j), ui(static_cast<int>(w)))) &&
-            wall_in_reach(j, static_cast<int>(w), t))
-          we_.push_back({j, static_cast<int>(w), wall_contact_of(static_cast<int>(w), j), 0, Vec<D>::Zero()});
+      walls_in_reach(j, t, [&](int w, std::uint32_t f) {
+        if (!std::binary_search(moved_w_.begin(), moved_w_.end(), key(ui(j), wall_slot(ui(w), f))))
+          we_.push_back({j, w, f, wall_contact_of(w, j), 0, Vec<D>::Zero()});
+      });
     }
   }
 
@@ -1313,6 +1325,7 @@ class HybridEngine final : public edm::EdmCore<D, CalendarQueue, HybridEngine<D>
   double wall_t_ = 0.0;             // the time of the soft forces being computed
   soft::WallsNow<D> walls_;  // shapes_, planes frozen at the soft forces' time
   std::vector<WallEntry> we_, we_sleep_;
+  std::vector<std::uint32_t> feats_;  // walls_in_reach's scratch
   bool sleeping_ = false;                 // rest rule on
   double rest_speed2_ = 0.0;
   std::uint64_t sleep_every_ = 1, since_sleep_check_ = 0;

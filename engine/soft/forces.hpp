@@ -302,29 +302,39 @@ template <int D, NormalLaw Law, bool Rot, class Shape = WallShape<D>>
 
 // The walls of one force evaluation: each plane frozen at the evaluation's times (PlaneInstant,
 // whose calls the compiler inlines), any other shape through its interface. refresh() before each
-// evaluation; with_wall(w, f) calls f with the one or the other: the physics is the same.
+// evaluation; with_wall(w, feature, f) calls f with the one or the other (a multi-contact shape:
+// its feature): the physics is the same.
 template <int D>
 class WallsNow {
  public:
   void assign(const std::vector<const WallShape<D>*>& shapes) {
     shapes_ = shapes;
     planes_.clear();
-    for (const WallShape<D>* s : shapes_) planes_.push_back(as_plane<D>(s));
+    multi_.clear();
+    for (const WallShape<D>* s : shapes_) {
+      planes_.push_back(as_plane<D>(s));
+      multi_.push_back(s->multi_contact());
+    }
     now_.assign(shapes_.size(), PlaneInstant<D>{});
   }
   void refresh(double t, double hdt) {
     for (std::size_t w = 0; w < shapes_.size(); ++w)
       if (planes_[w]) now_[w] = planes_[w]->instant(t, hdt);
   }
+  // Wall w's feature `feature` (contact/wall.hpp; 0 for a shape with one contact per grain).
   template <class F>
-  [[gnu::always_inline]] auto with_wall(std::size_t w, F&& f) const {
-    return planes_[w] ? f(now_[w]) : f(*shapes_[w]);
+  [[gnu::always_inline]] auto with_wall(std::size_t w, std::uint32_t feature, F&& f) const {
+    if (planes_[w]) return f(now_[w]);
+    if (multi_[w]) [[unlikely]]
+      return f(FeatureView<D>{*shapes_[w], feature});
+    return f(*shapes_[w]);
   }
   std::size_t size() const { return shapes_.size(); }
 
  private:
   std::vector<const WallShape<D>*> shapes_;
   std::vector<const PlaneWall<D>*> planes_;  // shapes_[w] where it is a plane, else null
+  std::vector<std::uint8_t> multi_;           // shapes_[w] has several features (a mesh)
   std::vector<PlaneInstant<D>> now_;
 };
 

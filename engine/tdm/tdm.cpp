@@ -116,7 +116,7 @@ class TdmEngine {
   std::vector<Vec<D>> xi_;
   std::array<Vec<D>, D == 3 ? 27 : 9> shifts_;
   // Wall list: (particle, wall) pairs within the skin, in particle order.
-  std::vector<std::uint32_t> wl_i_, wl_w_;
+  std::vector<std::uint32_t> wl_i_, wl_w_, wl_f_;  // particle, wall, feature (contact/wall.hpp)
   std::vector<std::uint8_t> wl_touch_;
   std::vector<Vec<D>> wl_xi_;
   std::vector<const WallShape<D>*> shapes_;  // sys_.walls[w].shape
@@ -281,7 +281,7 @@ void TdmEngine<D>::rebuild() {
     for (std::uint32_t e = off_[i]; e < off_[i + 1]; ++e)
       if (touch_[e]) mem.remember_pair(id_[i], id_[nb_[e]], rot_ ? xi_[e] : Vec<D>::Zero());
   for (std::size_t e = 0; e < wl_i_.size(); ++e)
-    if (wl_touch_[e]) mem.remember_wall(id_[wl_i_[e]], wl_w_[e], rot_ ? wl_xi_[e] : Vec<D>::Zero());
+    if (wl_touch_[e]) mem.remember_wall(id_[wl_i_[e]], wall_slot(wl_w_[e], wl_f_[e]), rot_ ? wl_xi_[e] : Vec<D>::Zero());
   mem.sort();
 
   // 2. Wrap periodic axes, check the state, bin into cells.
@@ -409,21 +409,33 @@ void TdmEngine<D>::rebuild() {
   // 5. Wall list.
   wl_i_.clear();
   wl_w_.clear();
+  wl_f_.clear();
   const double t_now = static_cast<double>(steps_) * dt_;
+  std::vector<std::uint32_t> feats;
   for (std::size_t i = 0; i < N_; ++i)
     for (std::size_t w = 0; w < shapes_.size() && !is_fixed(i); ++w) {  // a fixed grain meets no wall
       const WallShape<D>& W = *shapes_[w];
       // A moving wall reaches up to twice its stroke beyond where it is now.
-      if (W.at(x_[i], R_[i], t_now).gap < skin_ + 2.0 * W.stroke()) {
+      const double reach = skin_ + 2.0 * W.stroke();
+      if (W.multi_contact()) {
+        feats.clear();
+        W.features_near(x_[i], R_[i], reach, t_now, feats);
+        for (const std::uint32_t f : feats) {
+          wl_i_.push_back(static_cast<std::uint32_t>(i));
+          wl_w_.push_back(static_cast<std::uint32_t>(w));
+          wl_f_.push_back(f);
+        }
+      } else if (W.at(x_[i], R_[i], t_now).gap < reach) {
         wl_i_.push_back(static_cast<std::uint32_t>(i));
         wl_w_.push_back(static_cast<std::uint32_t>(w));
+        wl_f_.push_back(0);
       }
     }
   wl_touch_.assign(wl_i_.size(), 0);
   if (rot_) wl_xi_.assign(wl_i_.size(), Vec<D>::Zero());
   if (!mem.empty())
     for (std::size_t e = 0; e < wl_i_.size(); ++e)
-      if (mem.recall_wall(id_[wl_i_[e]], wl_w_[e], spring)) {
+      if (mem.recall_wall(id_[wl_i_[e]], wall_slot(wl_w_[e], wl_f_[e]), spring)) {
         wl_touch_[e] = 1;
         if (rot_) wl_xi_[e] = spring;
       }
@@ -530,7 +542,7 @@ inline void TdmEngine<D>::wall_contact_force(std::uint32_t e, Acc& acc, WallLoad
   const int w = static_cast<int>(wl_w_[e]);
   bool began = false;
   Vec<D> no_spring = Vec<D>::Zero();
-  const soft::WallContact<D> c = walls_.with_wall(w, [&](const auto& shape) {
+  const soft::WallContact<D> c = walls_.with_wall(w, wl_f_[e], [&](const auto& shape) {
     return soft::wall_contact<D, Law, Rot>(shape, wall_t_, dt_, !initial_, x_[i], R_[i], v_[i], acc_[i], w_[i],
                                            alpha_[i], Uniform ? cwall_[w] : wall_coeffs(w, i), wl_touch_[e],
                                            Rot ? wl_xi_[e] : no_spring, began, f_[i], tq_[i]);
@@ -655,7 +667,7 @@ ThermoSample TdmEngine<D>::sample(double time) {
     }
   for (std::size_t e = 0; e < wl_i_.size(); ++e) {
     const std::uint32_t i = wl_i_[e];
-    const double delta = -shapes_[wl_w_[e]]->at(x_[i], R_[i], time).gap;
+    const double delta = -shapes_[wl_w_[e]]->at_feature(x_[i], R_[i], time, wl_f_[e]).gap;
     if (delta <= 0.0) continue;
     el += stored(wall_coeffs(static_cast<int>(wl_w_[e]), i), delta, rot_ ? wl_xi_[e] : Vec<D>::Zero());
   }

@@ -2,6 +2,10 @@
 // from both sides, capped by two planes) keeps its kinetic energy over more than 10^6 collisions,
 // a quarter of them with the curved wall, and no grain is ever found beyond the walls: every
 // impact time on the tube (offset cylinder and rim tori, contact/shape_features.hpp) is exact.
+// The same for a gas in a closed box made of 12 triangles (contact/mesh.hpp): faces, the concave
+// edges and corners. A box mesh and the six equivalent planes give the same settled bed (TDM and
+// the hybrid): mean height within 0.5 %, and from one settled state the same forces (the two runs
+// stay together to round-off).
 #include <gtest/gtest.h>
 
 #include <cmath>
@@ -9,7 +13,12 @@
 #include <random>
 
 #include "contact/cylinder.hpp"
+#include "contact/mesh.hpp"
 #include "engine/edm.hpp"
+#include "engine/hybrid.hpp"
+#include "engine/tdm.hpp"
+#include "tests/support/mesh_shapes.hpp"
+#include "tests/support/shape_physics.hpp"
 
 namespace matep {
 namespace {
@@ -57,6 +66,140 @@ TEST(FlowGeometryValidation, ElasticGasInAClosedTubeKeepsItsEnergyOverAMillionCo
   }
   EXPECT_NEAR(ke / ke0, 1.0, 1e-10);
   EXPECT_LT(worst, 1e-12);
+}
+
+TEST(FlowGeometryValidation, ElasticGasInAMeshBoxKeepsItsEnergyOverAMillionCollisions) {
+  const double L = 0.1, R = 0.0015;
+  System<3> s = test::hard_material_system<3>(Vec<3>::Constant(-0.001), Vec<3>::Constant(L + 0.001));
+  s.walls.push_back(Wall<3>{"box", 0, test::box_mesh(Vec<3>::Zero(), Vec<3>::Constant(L), true)});
+  test::fill_gas<3>(
+      s, 2000, R, [&](const Vec<3>& x) { return (x.array() > 1.01 * R).all() && (x.array() < L - 1.01 * R).all(); }, 8);
+  ASSERT_EQ(s.size(), 2000u);
+  const double ke0 = test::kinetic<3>(s.v);
+  EdmSettings set;
+  set.end_time = 6.0;
+  const RunResult<3> r = run_edm<3>(s, set, QueueKind::Calendar);
+  ASSERT_EQ(r.status, "ok") << r.message;
+  std::printf("EDM gas in a mesh box: %llu pair and %llu wall collisions, energy ratio - 1 = %.3g\n",
+              static_cast<unsigned long long>(r.counts.pair), static_cast<unsigned long long>(r.counts.wall),
+              test::kinetic<3>(r.v) / ke0 - 1.0);
+  EXPECT_GT(r.counts.pair + r.counts.wall, 1000000u);
+  EXPECT_GT(r.counts.wall, 100000u);
+  EXPECT_NEAR(test::kinetic<3>(r.v) / ke0, 1.0, 1e-10);
+  double worst = 0.0;
+  for (const auto& x : r.x) worst = std::max({worst, R - x.minCoeff(), x.maxCoeff() + R - L});
+  EXPECT_LT(worst, 1e-12);
+}
+
+// A bed of 400 Hertz grains with friction poured into a box 5 cm wide, closed by six planes or by
+// one mesh of 12 triangles.
+System<3> bed(bool mesh) {
+  const double L = 0.05, H = 0.2, R = 0.0025;
+  System<3> s = test::hertz_system<3>(Vec<3>::Zero(), Vec<3>(L, L, H), 0.5, 0.5);
+  s.gravity = Vec<3>(0, 0, -9.81);
+  if (mesh) {
+    s.walls.push_back(Wall<3>{"box", 0, test::box_mesh(Vec<3>::Zero(), Vec<3>(L, L, H), true)});
+  } else {
+    for (int k = 0; k < 3; ++k) {
+      Vec<3> e = Vec<3>::Zero();
+      e[k] = 1.0;
+      s.walls.push_back(plane_wall<3>("lo", Vec<3>::Zero(), e));
+      s.walls.push_back(plane_wall<3>("hi", Vec<3>(L, L, H), Vec<3>(-e)));
+    }
+  }
+  test::fill_gas<3>(s, 400, R, [&](const Vec<3>& x) {
+    return (x.array() > 1.05 * R).all() && x[0] < L - 1.05 * R && x[1] < L - 1.05 * R && x[2] < H - 1.05 * R;
+  }, 12);
+  for (auto& v : s.v) v *= 0.1;
+  return s;
+}
+
+double mean_height(const std::vector<Vec<3>>& x) {
+  double z = 0.0;
+  for (const auto& p : x) z += p[2];
+  return z / static_cast<double>(x.size());
+}
+
+// Poured and settled (0.8 s) in the planes' box and in the mesh box from the same start: the beds
+// are two realizations of one random packing (a pour is chaotic: the round-off of the two wall
+// computations grows into different packings), so their mean heights agree only statistically;
+// 400 grains give about 0.3 % between realizations, and the test allows 1.5 % (the 0.5 % figure
+// is measured on 2000-grain pours: tests/validation/README.md). The forces themselves are the same
+// to round-off (the test below).
+void expect_same_bed(bool hybrid) {
+  const System<3> planes = bed(false), mesh = bed(true);
+  ASSERT_EQ(planes.x, mesh.x);
+  const RunResult<3> a = test::run_soft<3>(planes, hybrid, 0.8, 0.0, nullptr);
+  const RunResult<3> b = test::run_soft<3>(mesh, hybrid, 0.8, 0.0, nullptr);
+  ASSERT_EQ(a.status, "ok") << a.message;
+  ASSERT_EQ(b.status, "ok") << b.message;
+  const double za = mean_height(a.x), zb = mean_height(b.x);
+  std::printf("settled bed (%s): mean height %.6g (planes), %.6g (mesh), ratio - 1 = %.3g\n",
+              hybrid ? "hybrid" : "TDM", za, zb, zb / za - 1.0);
+  EXPECT_NEAR(zb / za, 1.0, 0.015);
+  double lo = 1.0, hi = 0.0;
+  for (const auto& x : b.x) {
+    lo = std::min(lo, x.minCoeff());
+    hi = std::max(hi, std::max(x[0], x[1]));
+  }
+  EXPECT_GT(lo, 0.0025 * 0.99);  // no grain through the mesh
+  EXPECT_LT(hi, 0.05 - 0.0025 * 0.99);
+}
+TEST(FlowGeometryValidation, AMeshBoxAndSixPlanesGiveTheSameBedTdm) { expect_same_bed(false); }
+TEST(FlowGeometryValidation, AMeshBoxAndSixPlanesGiveTheSameBedHybrid) { expect_same_bed(true); }
+
+// From one settled state (the planes' bed), 0.05 s more with the planes and with the mesh: the
+// same contacts and forces, so the grains stay together to round-off (TDM, one thread; the hybrid).
+void expect_same_forces(bool hybrid) {
+  System<3> planes = bed(false);
+  const RunResult<3> settled = test::run_soft<3>(planes, false, 0.6, 0.0, nullptr);
+  ASSERT_EQ(settled.status, "ok");
+  System<3> mesh = bed(true);
+  for (System<3>* s : {&planes, &mesh}) {
+    s->x = settled.x;
+    s->v = settled.v;
+    if (!settled.w.empty()) s->w = settled.w;
+  }
+  const RunResult<3> a = test::run_soft<3>(planes, hybrid, 0.05, 0.0, nullptr);
+  const RunResult<3> b = test::run_soft<3>(mesh, hybrid, 0.05, 0.0, nullptr);
+  double worst = 0.0;
+  for (std::size_t i = 0; i < a.x.size(); ++i) worst = std::max(worst, (a.x[i] - b.x[i]).norm());
+  std::printf("settled bed (%s), planes vs mesh after 0.05 s: largest separation %.3g m\n",
+              hybrid ? "hybrid" : "TDM", worst);
+  EXPECT_LT(worst, 1e-9);
+}
+TEST(FlowGeometryValidation, AMeshBoxAndSixPlanesGiveTheSameForcesOnASettledBedTdm) { expect_same_forces(false); }
+TEST(FlowGeometryValidation, AMeshBoxAndSixPlanesGiveTheSameForcesOnASettledBedHybrid) { expect_same_forces(true); }
+
+// An elastic hard-sphere gas in the two boxes from the same start: the same collisions (EDM), so
+// after 0.02 s (a few thousand collisions) the grains are where they are in the other box.
+TEST(FlowGeometryValidation, AMeshBoxAndSixPlanesGiveTheSameEdmCollisions) {
+  const double L = 0.1, R = 0.0015;
+  System<3> s = test::hard_material_system<3>(Vec<3>::Constant(-0.001), Vec<3>::Constant(L + 0.001));
+  test::fill_gas<3>(
+      s, 1000, R, [&](const Vec<3>& x) { return (x.array() > 1.01 * R).all() && (x.array() < L - 1.01 * R).all(); }, 9);
+  System<3> mesh = s;
+  mesh.walls.push_back(Wall<3>{"box", 0, test::box_mesh(Vec<3>::Zero(), Vec<3>::Constant(L), true)});
+  for (int k = 0; k < 3; ++k) {
+    Vec<3> e = Vec<3>::Zero();
+    e[k] = 1.0;
+    s.walls.push_back(plane_wall<3>("lo", Vec<3>::Zero(), e));
+    s.walls.push_back(plane_wall<3>("hi", Vec<3>::Constant(L), Vec<3>(-e)));
+  }
+  EdmSettings set;
+  set.end_time = 0.02;
+  const RunResult<3> a = run_edm<3>(s, set, QueueKind::Calendar);
+  const RunResult<3> b = run_edm<3>(mesh, set, QueueKind::Calendar);
+  ASSERT_EQ(a.status, "ok");
+  ASSERT_EQ(b.status, "ok");
+  EXPECT_EQ(a.counts.pair, b.counts.pair);
+  EXPECT_EQ(a.counts.wall, b.counts.wall);
+  EXPECT_GT(a.counts.wall, 500u);
+  double worst = 0.0;
+  for (std::size_t i = 0; i < a.x.size(); ++i) worst = std::max(worst, (a.x[i] - b.x[i]).norm());
+  std::printf("EDM gas, planes vs mesh after 0.02 s: %llu collisions, largest separation %.3g m\n",
+              static_cast<unsigned long long>(a.counts.pair + a.counts.wall), worst);
+  EXPECT_LT(worst, 1e-9);
 }
 
 }  // namespace

@@ -190,7 +190,7 @@ class MeshWall final : public WallShape<3> {
     // triangle can be touched, so the search starts at the entry (a checkpoint there) and stops at
     // the exit (a checkpoint, the flight may come back under gravity).
     double t_in = 0.0, t_out = kNever;
-    if (!box_window(x, v, g, R, t_in, t_out)) return kNever;
+    if (!flight_box_window<3>(x, v, g, lo_, hi_, R * (1.0 + 1e-6) + 1e-9 * scale_, t_in, t_out)) return kNever;
     if (t_in > 0.0) return t_in < limit ? t_in : kNever;
     // The search horizon: the time in which the centre travels `horizon_` (or the limit).
     double T = std::min(limit, t_out);
@@ -328,57 +328,6 @@ class MeshWall final : public WallShape<3> {
     for (std::uint32_t k = vert_start_[p]; k < vert_start_[p + 1]; ++k)
       if (!same(vert_tris_[k])) return false;
     return true;
-  }
-
-  // The times [t_in, t_out] of the first stay of the flight x + v t + g t^2 / 2 (t >= 0) in the
-  // mesh's box padded by R (1 + 1e-6) plus 1e-9 of its size; false if it never enters.
-  bool box_window(const V3& x, const V3& v, const V3& g, double R, double& t_in, double& t_out) const {
-    const double pad = R * (1.0 + 1e-6) + 1e-9 * scale_;
-    double cand[13];
-    int nc = 0;
-    cand[nc++] = 0.0;
-    // A crossing so soon that the centre has moved less than 1e-9 pad is at t = 0 (the particle
-    // sits on the box's face): the intervals' midpoints decide whether it enters or leaves.
-    const double sv = v.norm(), sg = g.norm();
-    auto add = [&](double r) {
-      if (r > 0.0 && r * (sv + 0.5 * sg * r) > 1e-9 * pad) cand[nc++] = r;
-    };
-    for (int k = 0; k < 3; ++k)
-      for (const double b : {lo_[k] - pad, hi_[k] + pad}) {
-        // a t^2 + b1 t + c0 = 0 with a = g/2, b1 = v, c0 = x - b (the stable quadratic formula)
-        const double a = 0.5 * g[k], b1 = v[k], c0 = x[k] - b;
-        if (a == 0.0) {
-          if (b1 != 0.0) add(-c0 / b1);
-          continue;
-        }
-        const double disc = b1 * b1 - 4.0 * a * c0;
-        if (disc < 0.0) continue;
-        const double q = -0.5 * (b1 + std::copysign(std::sqrt(disc), b1));
-        add(q / a);
-        if (q != 0.0) add(c0 / q);
-      }
-    for (int i = 1; i < nc; ++i)  // insertion sort (at most 13 times)
-      for (int j = i; j > 0 && cand[j] < cand[j - 1]; --j) std::swap(cand[j], cand[j - 1]);
-    auto in_box = [&](double t) {
-      const V3 p = x + t * v + (0.5 * t * t) * g;
-      return ((p.array() >= lo_.array() - pad) && (p.array() <= hi_.array() + pad)).all();
-    };
-    bool found = false;
-    for (int i = 0; i < nc; ++i) {
-      const double a = cand[i], b = i + 1 < nc ? cand[i + 1] : kNever;
-      const double mid = b < kNever ? 0.5 * (a + b) : a + 1.0 + a;
-      const bool inside = in_box(mid);
-      if (inside && !found) {
-        found = true;
-        t_in = a;
-      }
-      if (!inside && found) {
-        t_out = a;
-        return true;
-      }
-    }
-    if (found) t_out = kNever;
-    return found;
   }
 
   WallPoint<3> unconditioned_nearest(const V3& x, double R) const {
@@ -534,8 +483,9 @@ class MeshWall final : public WallShape<3> {
   std::array<int, 3> cell_of(const V3& p) const {
     std::array<int, 3> c;
     for (int k = 0; k < 3; ++k) {
-      const double s = std::floor((p[k] - lo_[k]) / cell_);
-      c[k] = static_cast<int>(std::clamp(s, 0.0, static_cast<double>(n_[k] - 1)));
+      double s = std::floor((p[k] - lo_[k]) / cell_);
+      if (!(s >= 0.0)) s = 0.0;  // below the grid, or NaN (a lost particle: no crash)
+      c[k] = static_cast<int>(std::min(s, static_cast<double>(n_[k] - 1)));
     }
     return c;
   }

@@ -166,6 +166,58 @@ bool out_of_reach(double gap, const Vec<D>& v, const Vec<D>& g, double limit) {
   return gap > limit * (v.norm() + 0.5 * g.norm() * limit) * (1.0 + 1e-12);
 }
 
+// The times [t_in, t_out] of the first stay of the flight x + v t + g t^2 / 2 (t >= 0) in the box
+// [lo - pad, hi + pad]; false if it never enters (t_out = kNever: it never leaves). A crossing so
+// soon that the centre has moved less than 1e-9 pad counts as at t = 0 (a particle on the box's
+// face): the intervals' midpoints decide whether it enters or leaves. Shapes whose impact search
+// is local (contact/mesh.hpp, rotating.hpp) start at the entry and stop at the exit.
+template <int D>
+bool flight_box_window(const Vec<D>& x, const Vec<D>& v, const Vec<D>& g, const Vec<D>& lo, const Vec<D>& hi,
+                       double pad, double& t_in, double& t_out) {
+  double cand[4 * D + 1];
+  int nc = 0;
+  cand[nc++] = 0.0;
+  const double sv = v.norm(), sg = g.norm();
+  auto add = [&](double r) {
+    if (r > 0.0 && r * (sv + 0.5 * sg * r) > 1e-9 * pad) cand[nc++] = r;
+  };
+  for (int k = 0; k < D; ++k)
+    for (const double b : {lo[k] - pad, hi[k] + pad}) {
+      // a t^2 + b1 t + c0 = 0, a = g / 2, b1 = v, c0 = x - b (the stable quadratic formula)
+      const double a = 0.5 * g[k], b1 = v[k], c0 = x[k] - b;
+      if (a == 0.0) {
+        if (b1 != 0.0) add(-c0 / b1);
+        continue;
+      }
+      const double disc = b1 * b1 - 4.0 * a * c0;
+      if (disc < 0.0) continue;
+      const double q = -0.5 * (b1 + std::copysign(std::sqrt(disc), b1));
+      add(q / a);
+      if (q != 0.0) add(c0 / q);
+    }
+  for (int i = 1; i < nc; ++i)  // insertion sort (a handful)
+    for (int j = i; j > 0 && cand[j] < cand[j - 1]; --j) std::swap(cand[j], cand[j - 1]);
+  auto in_box = [&](double t) {
+    const Vec<D> p = x + t * v + (0.5 * t * t) * g;
+    return ((p.array() >= lo.array() - pad) && (p.array() <= hi.array() + pad)).all();
+  };
+  bool found = false;
+  for (int i = 0; i < nc; ++i) {
+    const double a = cand[i], b = i + 1 < nc ? cand[i + 1] : kNever;
+    const bool inside = in_box(b < kNever ? 0.5 * (a + b) : 2.0 * a + 1.0);
+    if (inside && !found) {
+      found = true;
+      t_in = a;
+    }
+    if (!inside && found) {
+      t_out = a;
+      return true;
+    }
+  }
+  if (found) t_out = kNever;
+  return found;
+}
+
 namespace feature {
 
 // The earliest closing time of a point feature (a corner, the apex of a cone, the end of a 2D

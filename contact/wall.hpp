@@ -161,6 +161,11 @@ class WallShape {
   virtual double stroke() const { return 0.0; }
   // The largest speed of any surface point (the soft plan's expected impact speed).
   virtual double max_speed() const { return 0.0; }
+  // How fast the geometry itself sweeps through space (a turning paddle: |omega| r_max): the soft
+  // engines rebuild their lists before the sweep since the last build could close the skin. Zero
+  // for shapes at rest, shapes of revolution turning about their own axis (the surface moves, the
+  // geometry stays) and oscillating planes (their stroke widens the list instead).
+  virtual double sweep_speed() const { return 0.0; }
   // Whether the surface moves at all (a moving wall keeps the grains touching it awake).
   virtual bool moving() const { return false; }
 

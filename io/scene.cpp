@@ -19,6 +19,7 @@
 #include "contact/mesh.hpp"
 #include "contact/pipe.hpp"
 #include "contact/plane_patch.hpp"
+#include "contact/rotating.hpp"
 #include "io/placement.hpp"
 #include "io/scene_csv.hpp"
 #include "io/scene_toml.hpp"
@@ -472,19 +473,33 @@ Vec<D> read_direction(const TableReader& t, std::string_view k) {
   return n / n.norm();
 }
 
-// rotation = {angular_velocity = w}: rad/s about the shape's axis (2D: about its centre).
-inline double read_rotation(const TableReader& t) {
-  if (!t.has("rotation")) return 0.0;
+// rotation = {angular_velocity = w}: rad/s about the shape's own axis (2D: about its centre), for
+// the shapes of revolution. With `point` (and in 3D `axis`) the rotation is about that axis
+// instead, for any bounded shape (contact/rotating.hpp, applied by read_wall_shape): the shape is
+// then read at rest (0 here).
+template <int D>
+bool about_given_axis(const TableReader& t) {
+  if (!t.has("rotation")) return false;
   const TableReader r = t.sub("rotation");
-  r.allow({"angular_velocity"});
-  return r.number("angular_velocity");
+  if (D == 2) r.allow({"angular_velocity", "point"});
+  else r.allow({"angular_velocity", "point", "axis"});
+  return r.has("point") || r.has("axis");
+}
+template <int D>
+double read_rotation(const TableReader& t) {
+  if (!t.has("rotation") || about_given_axis<D>(t)) return 0.0;
+  return t.sub("rotation").number("angular_velocity");
 }
 
 // type = "pipe": point (the centreline's start), direction, radius, and pieces, an array of
 // ["straight", length] and ["arc", bend_radius, angle_degrees(, [axis])] (contact/pipe.hpp).
 template <int D>
 std::shared_ptr<const WallShape<D>> read_pipe(const TableReader& t) {
-  t.allow({"type", "point", "direction", "radius", "pieces", "material"});
+  t.allow({"type", "point", "direction", "radius", "pieces", "material", "rotation"});
+  if (t.has("rotation") && !about_given_axis<D>(t))
+    t.fail("rotation", D == 3 ? "a pipe turns only about a given axis: add point and axis to rotation"
+                              : "a 2D pipe turns only about a given point: add point to rotation",
+           t.need("rotation"));
   const Vec<D> point = to_vec<D>(t.numbers("point", D));
   const Vec<D> dir = read_direction<D>(t, "direction");
   const double radius = t.number("radius", kPositive);
@@ -545,7 +560,9 @@ std::shared_ptr<const WallShape<D>> read_pipe(const TableReader& t) {
 // for a CAD file in millimetres), translate (added after scaling) (contact/mesh.hpp, io/stl.hpp).
 template <int D>
 std::shared_ptr<const WallShape<D>> read_mesh(const TableReader& t, const fs::path& base_dir) {
-  t.allow({"type", "file", "scale", "translate", "material"});
+  t.allow({"type", "file", "scale", "translate", "material", "rotation"});
+  if (t.has("rotation") && !about_given_axis<D>(t))
+    t.fail("rotation", "a mesh turns only about a given axis: add point and axis to rotation", t.need("rotation"));
   if constexpr (D == 2) {
     t.fail("type", "a mesh wall is a 3D triangle surface (STL); a 2D scene uses planes, patches and pipes",
            t.need("type"));
@@ -578,7 +595,27 @@ std::shared_ptr<const WallShape<D>> read_mesh(const TableReader& t, const fs::pa
 // The shape of a [wall.NAME] table (contact/plane.hpp, plane_patch.hpp, cylinder.hpp, cone.hpp,
 // pipe.hpp, mesh.hpp).
 template <int D>
+std::shared_ptr<const WallShape<D>> read_shape_itself(const TableReader& t, const fs::path& base_dir);
+
+// A shape, turning about a given axis if rotation has a point (contact/rotating.hpp).
+template <int D>
 std::shared_ptr<const WallShape<D>> read_wall_shape(const TableReader& t, const fs::path& base_dir) {
+  std::shared_ptr<const WallShape<D>> shape = read_shape_itself<D>(t, base_dir);
+  if (!about_given_axis<D>(t)) return shape;
+  const TableReader r = t.sub("rotation");
+  const double omega = r.number("angular_velocity");
+  const Vec<D> point = to_vec<D>(r.numbers("point", D));
+  Vec<D> axis = Vec<D>::Zero();
+  if constexpr (D == 3) axis = read_direction<D>(r, "axis");
+  try {
+    return std::make_shared<RotatingWall<D>>(std::move(shape), point, axis, omega);
+  } catch (const std::invalid_argument& e) {
+    t.fail("rotation", e.what(), t.need("rotation"));
+  }
+}
+
+template <int D>
+std::shared_ptr<const WallShape<D>> read_shape_itself(const TableReader& t, const fs::path& base_dir) {
   const std::string type = t.string("type", {"plane", "cylinder", "cone", "pipe", "mesh"});
   if (type == "pipe") return read_pipe<D>(t);
   if (type == "mesh") return read_mesh<D>(t, base_dir);
@@ -606,7 +643,7 @@ std::shared_ptr<const WallShape<D>> read_wall_shape(const TableReader& t, const 
              t.need("oscillation"));
     const bool hole = std::string_view(region_key) == "hole";
     const TableReader r = t.sub(region_key);
-    const double omega = read_rotation(t);
+    const double omega = read_rotation<D>(t);
     const std::string shape = r.string("shape", D == 3 ? std::initializer_list<std::string_view>{"disk", "rectangle"}
                                                      : std::initializer_list<std::string_view>{"segment"});
     if (shape == "rectangle") {
@@ -616,14 +653,19 @@ std::shared_ptr<const WallShape<D>> read_wall_shape(const TableReader& t, const 
       const Vec<D> u = read_direction<D>(r, "direction");
       if (std::abs(u.dot(n)) > 1.0 - 1e-9)
         r.fail("direction", "must not be parallel to the plane's normal", r.need("direction"));
-      if (omega != 0.0) t.fail("rotation", "only a disk patch can rotate", t.need("rotation"));
+      if (omega != 0.0)
+        t.fail("rotation", "a rectangle turns only about a given axis: add point and axis to rotation",
+               t.need("rotation"));
       return std::make_shared<BoundedPlane<D>>(point, n, u, 0.5 * size[0], 0.5 * size[1], hole);
     }
     // A disk (3D) or a segment (2D) around `point`.
     r.allow({"shape", D == 3 ? "radius" : "length"});
     const double radius = D == 3 ? r.number("radius", kPositive) : 0.5 * r.number("length", kPositive);
     if (omega != 0.0 && (D == 2 || hole))
-      t.fail("rotation", "only a 3D disk patch can rotate (about its normal)", t.need("rotation"));
+      t.fail("rotation",
+             D == 2 ? "a segment turns only about a given point: add point to rotation"
+                    : "only a 3D disk patch turns about its own normal; a holed plane is unbounded and cannot turn",
+             t.need("rotation"));
     return std::make_shared<BoundedPlane<D>>(point, n, radius, hole, omega);
   }
   if (type == "cylinder") {
@@ -639,7 +681,7 @@ std::shared_ptr<const WallShape<D>> read_wall_shape(const TableReader& t, const 
                      "infinite one",
              t.need("side"));
     const bool inside = t.string_opt("side", {"inside", "outside"}).value_or("inside") == "inside";
-    return std::make_shared<CylinderWall<D>>(point, axis, radius, length, inside, read_rotation(t));
+    return std::make_shared<CylinderWall<D>>(point, axis, radius, length, inside, read_rotation<D>(t));
   }
   // cone
   t.allow({"type", "point", "axis", "radii", "length", "material", "rotation"});
@@ -649,7 +691,7 @@ std::shared_ptr<const WallShape<D>> read_wall_shape(const TableReader& t, const 
   if (!(radii[0] >= 0.0) || !(radii[1] >= 0.0) || !(radii[0] + radii[1] > 0.0))
     t.fail("radii", "must be two radii >= 0, not both 0", t.need("radii"));
   const double length = t.number("length", kPositive);
-  return std::make_shared<ConeWall<D>>(point, axis, radii[0], radii[1], length, read_rotation(t));
+  return std::make_shared<ConeWall<D>>(point, axis, radii[0], radii[1], length, read_rotation<D>(t));
 }
 
 // A bounded wall must lie within the domain (it would otherwise stand where no grain can be).

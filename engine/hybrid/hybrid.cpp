@@ -146,6 +146,7 @@ class HybridEngine final : public edm::EdmCore<D, CalendarQueue, HybridEngine<D>
   double ext_cell_margin() const { return lskin_; }  // the cells hold every particle within the list skin
   void ext_cells_ready(double rmax) {
     walls_.assign(shapes_);
+    for (const WallShape<D>* w : shapes_) sweep_ = std::max(sweep_, w->sweep_speed());
     sg_w_ = 2.0 * rmax + lskin_;
     for (int k = 0; k < D; ++k) any_periodic_ = any_periodic_ || sys_.periodic[k];
     hybrid_arrays();
@@ -519,6 +520,7 @@ class HybridEngine final : public edm::EdmCore<D, CalendarQueue, HybridEngine<D>
   // with an awake neighbour are watched.
   [[gnu::flatten]] void rebuild_entries(double t) {
     ++hstats_.rebuilds;
+    build_t_ = t;
     soft::SpringMemory<D>& mem = springs_;
     mem.clear();
     pairs_.for_each([&](const PairEntry& e) {
@@ -758,6 +760,8 @@ class HybridEngine final : public edm::EdmCore<D, CalendarQueue, HybridEngine<D>
     pending_reason_.clear();
     capture(t);
     // 3. Entries, 4. forces at t.
+    // A turning wall sweeps towards the grains too: with their half skin, half the skin.
+    if (sweep_ > 0.0 && sweep_ * (t - build_t_) > 0.5 * lskin_) dirty_ = true;
     if (dirty_) rebuild_entries(t);
     soft_forces(t);
     if (t == 0.0) start_soft_state();
@@ -1290,6 +1294,7 @@ class HybridEngine final : public edm::EdmCore<D, CalendarQueue, HybridEngine<D>
   HybridSettings hset_;
   SoftPlan plan_;
   double lskin_ = 0.0;
+  double sweep_ = 0.0, build_t_ = 0.0;  // the walls' largest sweep speed, the time of the last rebuild
   double h_ = 0.0, hdt_ = 0.0, skin_ = 0.0, kstab_ = 0.0, hyst_ = 0.0, rest_time_ = 0.0;
   SwitchRule::Params switch_params_;
   SwitchRule switch_;  // engine/hybrid/switching.hpp

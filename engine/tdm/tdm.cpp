@@ -152,6 +152,8 @@ class TdmEngine {
   soft::SpringMemory<D> springs_;  // contacts remembered across a rebuild
 
   std::uint64_t steps_ = 0, rebuilds_ = 0, pair_begun_ = 0, wall_begun_ = 0;
+  std::uint64_t build_step_ = 0;  // the step of the last rebuild
+  double sweep_ = 0.0;            // the walls' largest sweep speed (contact/wall.hpp)
   double max_rel_ = 0.0, max_abs_ = 0.0;
   std::string status_ = "ok", message_;
 };
@@ -197,7 +199,10 @@ void TdmEngine<D>::setup() {
   half_skin2_ = 0.25 * skin_ * skin_;
   L_ = sys_.upper - sys_.lower;
   g_ = sys_.gravity;
-  for (const auto& w : sys_.walls) shapes_.push_back(w.shape.get());
+  for (const auto& w : sys_.walls) {
+    shapes_.push_back(w.shape.get());
+    sweep_ = std::max(sweep_, w.shape->sweep_speed());
+  }
   walls_.assign(shapes_);
   rot_ = plan_.friction;
   law_ = plan_.law;
@@ -274,6 +279,7 @@ void TdmEngine<D>::setup() {
 template <int D>
 void TdmEngine<D>::rebuild() {
   ++rebuilds_;
+  build_step_ = steps_;
   // 1. Remember touching contacts by particle ids (engine/soft/springs.hpp).
   soft::SpringMemory<D>& mem = springs_;
   mem.clear();
@@ -772,6 +778,8 @@ RunResult<D> TdmEngine<D>::run() {
     ++steps_;
     bool moved = false;
     for (const auto& a : acc_t_) moved = moved || a.moved;
+    // A turning wall sweeps towards the grains too: together with their half skin, half the skin.
+    if (sweep_ > 0.0 && sweep_ * static_cast<double>(steps_ - build_step_) * dt_ > 0.5 * skin_) moved = true;
     if (moved && status_ == "ok") rebuild();
     if ((steps_ & 1023) == 0)
       for (auto* o : obs_) o->on_progress(steps_ * dt_, steps_);

@@ -35,50 +35,6 @@ constexpr int kLong = 4000;  // per case: 24 000 flights over the six
 constexpr double kTmax = 3.0;
 constexpr double kTol = 1e-10;
 
-// Long-double distance from x to triangle (a, b, c).
-long double triangle_distance(const VecL<3>& x, const VecL<3>& a, const VecL<3>& b, const VecL<3>& c) {
-  const VecL<3> n = (b - a).cross(c - a).normalized();
-  const long double h = (x - a).dot(n);
-  const VecL<3> p = x - h * n;
-  auto side = [&](const VecL<3>& u, const VecL<3>& w) { return n.dot((w - u).cross(p - u)) >= 0.0L; };
-  if (side(a, b) && side(b, c) && side(c, a)) return std::abs(h);
-  auto seg = [&](const VecL<3>& u, const VecL<3>& w) {
-    const VecL<3> d = w - u;
-    const long double s = std::clamp((x - u).dot(d) / d.squaredNorm(), 0.0L, 1.0L);
-    return (x - u - s * d).norm();
-  };
-  return std::min({seg(a, b), seg(b, c), seg(c, a)});
-}
-
-long double mesh_gap_ld(const MeshWall& m, const VecL<3>& x, long double R) {
-  long double d = std::numeric_limits<long double>::infinity();
-  for (const auto& t : m.triangle_list())
-    d = std::min(d, triangle_distance(x, test::to_ld<3>(m.vertices()[t[0]]), test::to_ld<3>(m.vertices()[t[1]]),
-                                      test::to_ld<3>(m.vertices()[t[2]])));
-  return d - R;
-}
-
-// The engine's view of impact_time: a checkpoint (the search horizon, the gap still open) is a
-// point to predict again from.
-double impact_following_checkpoints(const MeshWall& m, const Vec<3>& x0, const Vec<3>& v0, const Vec<3>& g, double R,
-                                    double limit) {
-  double t0 = 0.0;
-  Vec<3> x = x0, v = v0;
-  for (int k = 0; k < 100000; ++k) {
-    const double dt = m.impact_time(x, v, g, R, 0.0, limit - t0);
-    if (!(dt < kNever)) return kNever;
-    // Positions from the start, as the reference computes them.
-    const double t = t0 + dt;
-    const Vec<3> xt = x0 + t * v0 + (0.5 * t * t) * g;
-    if (m.at(xt, R, 0.0).gap <= 1e-9 * R) return t;
-    if (!(dt > 0.0)) return t;  // stalled: report it (the test fails)
-    t0 = t;
-    x = xt;
-    v = v0 + t * g;
-  }
-  return -1.0;
-}
-
 enum class Kind { Octahedron, HeightField, Box };
 
 std::shared_ptr<const MeshWall> random_mesh(std::mt19937_64& rng, Kind k) {
@@ -96,7 +52,7 @@ FlightCase<3> random_flight(std::mt19937_64& rng, const MeshWall& m, bool gravit
     for (int k = 0; k < 3; ++k) f.x[k] = 0.9 * u(rng);
     f.v = (0.3 + 1.7 * u01(rng)) * test::random_unit<3>(rng);
     f.g = gravity ? Vec<3>((0.5 + 4.5 * u01(rng)) * test::random_unit<3>(rng)) : Vec<3>::Zero();
-    if (mesh_gap_ld(m, test::to_ld<3>(f.x), f.R) > 1e-9L) return f;
+    if (test::mesh_gap_ld(m, test::to_ld<3>(f.x), f.R) > 1e-9L) return f;
   }
 }
 
@@ -118,15 +74,15 @@ void expect_case(const char* name, Kind kind, bool gravity, int n, std::uint64_t
     const auto m = random_mesh(rng, kind);
     merge(total, test::check_impacts<3>(
                      [&](const Vec<3>& x, const Vec<3>& v, const Vec<3>& g, double R) {
-                       const double t = impact_following_checkpoints(*m, x, v, g, R, kNever);
+                       const double t = test::impact_following_checkpoints<3>(*m, x, v, g, R, kNever);
                        // A limit just past the time finds it; one just short of it does not.
                        if (t < kNever && t > 0.0) {
-                         EXPECT_NEAR(impact_following_checkpoints(*m, x, v, g, R, t * (1.0 + 1e-6)), t, 1e-12 * t);
-                         EXPECT_EQ(impact_following_checkpoints(*m, x, v, g, R, t * (1.0 - 1e-6)), kNever);
+                         EXPECT_NEAR(test::impact_following_checkpoints<3>(*m, x, v, g, R, t * (1.0 + 1e-6)), t, 1e-12 * t);
+                         EXPECT_EQ(test::impact_following_checkpoints<3>(*m, x, v, g, R, t * (1.0 - 1e-6)), kNever);
                        }
                        return t;
                      },
-                     [&](const VecL<3>& x, long double R) { return mesh_gap_ld(*m, x, R); },
+                     [&](const VecL<3>& x, long double R) { return test::mesh_gap_ld(*m, x, R); },
                      [&](std::mt19937_64& r) { return random_flight(r, *m, gravity); }, 50, kTmax, kTol, rng()));
   }
   total.print(name);
@@ -161,14 +117,14 @@ TEST(MeshImpact, GrazingFlightsTouchOrMissAsTheReferenceSays) {
         const auto m = random_mesh(rng, kind);
         const double miss = (k % 2 ? 1e-9 : -1e-9);
         FlightCase<3> f = random_flight(rng, *m, gravity);
-        auto gld = [&](const VecL<3>& x, long double R) { return mesh_gap_ld(*m, x, R); };
+        auto gld = [&](const VecL<3>& x, long double R) { return test::mesh_gap_ld(*m, x, R); };
         if (!test::make_graze<3>(f, gld, [&](const Vec<3>& x, double R) { return m->at(x, R, 0.0).normal; }, kTmax,
                                  miss * f.R))
           continue;
         ++made;
         merge(total, test::check_impacts<3>(
                          [&](const Vec<3>& x, const Vec<3>& v, const Vec<3>& g, double R) {
-                           return impact_following_checkpoints(*m, x, v, g, R, kNever);
+                           return test::impact_following_checkpoints<3>(*m, x, v, g, R, kNever);
                          },
                          gld, [&](std::mt19937_64&) { return f; }, 1, kTmax, 1e-8, 0));
       }
@@ -190,7 +146,7 @@ TEST(MeshImpact, ClosedFormFlights) {
   const auto box = test::box_mesh(Vec<3>::Zero(), Vec<3>::Ones(), true);
   const double R = 0.1;
   auto hit = [&](const Vec<3>& x, const Vec<3>& v, const Vec<3>& g) {
-    return impact_following_checkpoints(*box, x, v, g, R, kNever);
+    return test::impact_following_checkpoints<3>(*box, x, v, g, R, kNever);
   };
   EXPECT_NEAR(hit(Vec<3>(0.3, 0.6, 0.8), Vec<3>(0, 0, -1), Vec<3>::Zero()), 0.7, 1e-14);
   EXPECT_NEAR(hit(Vec<3>(0.3, 0.6, 0.8), Vec<3>::Zero(), Vec<3>(0, 0, -2)), std::sqrt(0.7), 1e-14);
@@ -221,7 +177,7 @@ TEST(MeshShape, NearestPointOfATriangleMatchesTheReference) {
       x[j] = 2.0 * u(rng);
     }
     const TriangleFoot f = nearest_on_triangle(x, a, b, c);
-    const long double ref = triangle_distance(test::to_ld<3>(x), test::to_ld<3>(a), test::to_ld<3>(b), test::to_ld<3>(c));
+    const long double ref = test::triangle_distance(test::to_ld<3>(x), test::to_ld<3>(a), test::to_ld<3>(b), test::to_ld<3>(c));
     EXPECT_NEAR((x - f.point).norm(), static_cast<double>(ref), 1e-12);
   }
 }

@@ -14,6 +14,7 @@
 #include <Eigen/Geometry>
 
 #include "contact/mesh.hpp"
+#include "tests/support/shape_check.hpp"
 
 namespace matep::test {
 
@@ -105,6 +106,52 @@ inline void write_stl_binary(const std::string& path, const std::vector<Vec<3>>&
     const std::uint16_t attr = 0;
     f.write(reinterpret_cast<const char*>(&attr), 2);
   }
+}
+
+// Long-double distance from x to triangle (a, b, c).
+inline long double triangle_distance(const VecL<3>& x, const VecL<3>& a, const VecL<3>& b, const VecL<3>& c) {
+  const VecL<3> n = (b - a).cross(c - a).normalized();
+  const long double h = (x - a).dot(n);
+  const VecL<3> p = x - h * n;
+  auto side = [&](const VecL<3>& u, const VecL<3>& w) { return n.dot((w - u).cross(p - u)) >= 0.0L; };
+  if (side(a, b) && side(b, c) && side(c, a)) return std::abs(h);
+  auto seg = [&](const VecL<3>& u, const VecL<3>& w) {
+    const VecL<3> d = w - u;
+    const long double s = std::clamp((x - u).dot(d) / d.squaredNorm(), 0.0L, 1.0L);
+    return (x - u - s * d).norm();
+  };
+  return std::min({seg(a, b), seg(b, c), seg(c, a)});
+}
+
+inline long double mesh_gap_ld(const MeshWall& m, const VecL<3>& x, long double R) {
+  long double d = std::numeric_limits<long double>::infinity();
+  for (const auto& t : m.triangle_list())
+    d = std::min(d, triangle_distance(x, to_ld<3>(m.vertices()[t[0]]), to_ld<3>(m.vertices()[t[1]]),
+                                      to_ld<3>(m.vertices()[t[2]])));
+  return d - R;
+}
+
+// The engine's view of impact_time for a flight starting at time 0: a checkpoint (a search
+// horizon, the gap still open) is a point to predict again from, at its absolute time (a turning
+// wall's position depends on it).
+template <int D>
+double impact_following_checkpoints(const WallShape<D>& m, const Vec<D>& x0, const Vec<D>& v0, const Vec<D>& g, double R,
+                                    double limit) {
+  double t0 = 0.0;
+  Vec<D> x = x0, v = v0;
+  for (int k = 0; k < 100000; ++k) {
+    const double dt = m.impact_time(x, v, g, R, t0, limit - t0);
+    if (!(dt < kNever)) return kNever;
+    // Positions from the start, as the reference computes them.
+    const double t = t0 + dt;
+    const Vec<D> xt = x0 + t * v0 + (0.5 * t * t) * g;
+    if (m.at(xt, R, t).gap <= 1e-9 * R) return t;
+    if (!(dt > 0.0)) return t;  // stalled: report it (the test fails)
+    t0 = t;
+    x = xt;
+    v = v0 + t * g;
+  }
+  return -1.0;
 }
 
 }  // namespace matep::test

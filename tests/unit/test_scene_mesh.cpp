@@ -11,6 +11,7 @@
 #include <variant>
 
 #include "contact/mesh.hpp"
+#include "contact/rotating.hpp"
 #include "io/scene.hpp"
 #include "io/stl.hpp"
 #include "tests/support/cli.hpp"
@@ -152,6 +153,50 @@ TEST(SceneMesh, BadFilesAndValuesAreRefusedNamingFileKeyAndValue) {
   // In millimetres the box (+-100) does not fit the domain (+-0.2).
   expect_error(scene(w + "file = \"box_ascii.stl\"\n"), {"wall.hopper", "outside the domain", "100"});
   expect_error(scene(w + "file = \"box_ascii.stl\"\n", 2), {"wall.hopper.type", "3D"});
+}
+
+// rotation = {angular_velocity, point, axis}: any bounded shape turning about that axis
+// (contact/rotating.hpp); without point, only shapes of revolution about their own axis.
+TEST(SceneMesh, RotationAboutAGivenAxisTurnsAnyBoundedShape) {
+  const std::string dir = files().dir.string();
+  {
+    const Scene sc = load_scene_string(scene("[wall.mixer]\ntype = \"mesh\"\nfile = \"box_ascii.stl\"\nscale = 0.0005\n"
+                                             "rotation = {angular_velocity = 2.0, point = [0.0, 0.0, 0.0], "
+                                             "axis = [0.0, 0.0, 3.0]}\n"),
+                                       "mesh.toml", dir, {});
+    const auto& w = std::get<System<3>>(sc.system).walls.at(0).geometry();
+    const auto* r = dynamic_cast<const RotatingWall<3>*>(&w);
+    ASSERT_NE(r, nullptr);
+    EXPECT_EQ(r->rotation().omega, 2.0);
+    EXPECT_EQ(r->rotation().axis, Vec<3>(0, 0, 1));
+    EXPECT_NE(dynamic_cast<const MeshWall*>(&r->body()), nullptr);
+    // A quarter turn later (t = pi/4 s) the box [-0.05, 0.05]^3 is the same box: the gap from its
+    // centre is 0.05 - R; the surface there moves at 2 z x (c - 0).
+    const WallPoint<3> c = w.at(Vec<3>(0.02, 0.0, 0.0), 0.01, 0.25 * 3.141592653589793);
+    EXPECT_NEAR(c.gap, 0.02, 1e-12);
+    EXPECT_LT((c.velocity - Vec<3>(0, 0.1, 0)).norm(), 1e-12);
+  }
+  {
+    const Scene sc = load_scene_string(
+        scene("[wall.paddle]\ntype = \"plane\"\npoint = [0.05, 0.0, 0.0]\nnormal = [0.0, 1.0, 0.0]\n"
+              "patch = {shape = \"rectangle\", size = [0.08, 0.1], direction = [1.0, 0.0, 0.0]}\n"
+              "rotation = {angular_velocity = -1.0, point = [0.0, 0.0, 0.0], axis = [0.0, 0.0, 1.0]}\n"),
+        "mesh.toml", dir, {});
+    EXPECT_NE(dynamic_cast<const RotatingWall<3>*>(&std::get<System<3>>(sc.system).walls.at(0).geometry()), nullptr);
+  }
+  const std::string plane = "[wall.floor]\ntype = \"plane\"\npoint = [0.0, 0.0, -0.1]\nnormal = [0.0, 0.0, 1.0]\n";
+  expect_error(scene(plane + "hole = {shape = \"disk\", radius = 0.02}\nrotation = {angular_velocity = 1.0, point = "
+                             "[0.0, 0.0, 0.0], axis = [1.0, 0.0, 0.0]}\n"),
+               {"wall.floor.rotation", "unbounded"});
+  expect_error(scene("[wall.m]\ntype = \"mesh\"\nfile = \"box_ascii.stl\"\nscale = 0.0005\nrotation = "
+                     "{angular_velocity = 1.0, point = [0.0, 0.0, 0.0], axis = [0.0, 0.0, 0.0]}\n"),
+               {"wall.m.rotation.axis", "nonzero"});
+  expect_error(scene("[wall.m]\ntype = \"mesh\"\nfile = \"box_ascii.stl\"\nscale = 0.0005\nrotation = "
+                     "{angular_velocity = 1.0, point = [0.0, 0.0, 0.0]}\n"),
+               {"wall.m.rotation.axis", "missing"});
+  expect_error(scene("[wall.m]\ntype = \"mesh\"\nfile = \"box_ascii.stl\"\nscale = 0.0005\nrotation = "
+                     "{angular_velocity = 1.0, point = [0.0, 0.0, 0.0], axis = [0.0, 0.0, 1.0], speed = 2}\n"),
+               {"wall.m.rotation.speed"});
 }
 
 TEST(SceneMesh, AMissingMeshEndsTheCliWithExit2AndWritesNothing) {

@@ -2,7 +2,8 @@
 // from both sides, capped by two planes) keeps its kinetic energy over more than 10^6 collisions,
 // a quarter of them with the curved wall, and no grain is ever found beyond the walls: every
 // impact time on the tube (offset cylinder and rim tori, contact/shape_features.hpp) is exact.
-// The same for a gas in a closed box made of 12 triangles (contact/mesh.hpp): faces, the concave
+// The same for a gas in a closed pipe bend (a quarter torus between two straight runs, closed by
+// its end caps: contact/pipe.hpp) and for a gas in a closed box made of 12 triangles (contact/mesh.hpp): faces, the concave
 // edges and corners. A box mesh and the six equivalent planes give the same settled bed (TDM and
 // the hybrid): mean height within 0.5 %, and from one settled state the same forces (the two runs
 // stay together to round-off).
@@ -14,6 +15,7 @@
 
 #include "contact/cylinder.hpp"
 #include "contact/mesh.hpp"
+#include "contact/pipe.hpp"
 #include "engine/edm.hpp"
 #include "engine/hybrid.hpp"
 #include "engine/tdm.hpp"
@@ -66,6 +68,36 @@ TEST(FlowGeometryValidation, ElasticGasInAClosedTubeKeepsItsEnergyOverAMillionCo
   }
   EXPECT_NEAR(ke / ke0, 1.0, 1e-10);
   EXPECT_LT(worst, 1e-12);
+}
+
+TEST(FlowGeometryValidation, ElasticGasInAPipeBendKeepsItsEnergyOverAMillionCollisions) {
+  // Radius 0.03, from the origin along +x: 0.1 straight, a 90 degree bend of radius 0.08 about z
+  // (towards +y), 0.1 straight; hemispherical caps close both ends.
+  const double Rp = 0.03, R = 0.0015;
+  auto pipe = std::make_shared<PipeWall<3>>(
+      Vec<3>::Zero(), Vec<3>(1, 0, 0), Rp,
+      std::vector<PipePiece<3>>{PipePiece<3>::straight(0.1), PipePiece<3>::arc(0.08, 0.5 * 3.141592653589793,
+                                                                                Vec<3>(0, 0, 1)),
+                                PipePiece<3>::straight(0.1)});
+  System<3> s = test::hard_material_system<3>(Vec<3>(-0.05, -0.05, -0.05), Vec<3>(0.25, 0.25, 0.05));
+  s.walls.push_back(Wall<3>{"bend", 0, pipe});
+  test::fill_gas<3>(s, 2000, R, [&](const Vec<3>& x) { return pipe->at(x, R, 0.0).gap > 0.01 * R; }, 6);
+  ASSERT_EQ(s.size(), 2000u);
+  const double ke0 = test::kinetic<3>(s.v);
+  EdmSettings set;
+  set.end_time = 5.5;
+  const RunResult<3> r = run_edm<3>(s, set, QueueKind::Calendar);
+  ASSERT_EQ(r.status, "ok") << r.message;
+  double worst = 0.0;
+  for (const auto& x : r.x) worst = std::max(worst, -pipe->at(x, R, r.time).gap);
+  std::printf("EDM gas in a pipe bend: %llu pair and %llu wall collisions, energy ratio - 1 = %.3g, worst overlap %.3g\n",
+              static_cast<unsigned long long>(r.counts.pair), static_cast<unsigned long long>(r.counts.wall),
+              test::kinetic<3>(r.v) / ke0 - 1.0, worst);
+  EXPECT_GT(r.counts.pair + r.counts.wall, 1000000u);
+  EXPECT_GT(r.counts.wall, 100000u);
+  EXPECT_NEAR(test::kinetic<3>(r.v) / ke0, 1.0, 1e-10);
+  EXPECT_LT(worst, 1e-12);
+  EXPECT_LT(r.max_overlap, 1e-12);
 }
 
 TEST(FlowGeometryValidation, ElasticGasInAMeshBoxKeepsItsEnergyOverAMillionCollisions) {

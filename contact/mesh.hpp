@@ -255,6 +255,11 @@ class MeshWall final : public WallShape<3> {
   }
 
   bool bracketed() const override { return true; }
+  double reach_from_axis(const V3& p, const V3& a) const override {
+    double r = 0.0;
+    for (const V3& x : v_) r = std::max(r, (x - p - (x - p).dot(a) * a).norm());
+    return r;
+  }
   bool bounds(V3& lo, V3& hi) const override {
     lo = lo_;
     hi = hi_;

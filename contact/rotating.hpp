@@ -10,7 +10,8 @@
 //   features:          the body's (a mesh's facets), looked up in the body's frame.
 // Impact times: in the body's frame the flight is no longer a polynomial, so the time is found by
 // conservative advancement (the gap g(t) changes no faster than the centre moves relative to the
-// surface, |v + g t| + |omega| r_max, r_max the body's farthest point from the axis: stepping by
+// surface, |v + g t| + |omega| r_max, r_max the body's farthest point from the axis
+// (WallShape::reach_from_axis: a mesh's farthest vertex, else its box's farthest corner): stepping by
 // g / that bound never passes the first touch; e.g. Mirtich, "Impulse-based dynamic simulation of
 // rigid body systems", PhD thesis, Berkeley 1996, ch. 4). The steps end at a gap below 1e-13 of
 // the particle's size (the touch, within round-off), at the engine's limit, or after a bounded
@@ -54,14 +55,8 @@ class RotatingWall final : public WallShape<D> {
       if (!(axis.norm() > 0.0)) throw std::invalid_argument("rotation: axis must be a nonzero vector");
       rot_.axis = axis.normalized();
     }
-    // The farthest point of the body's box from the axis.
-    for (int m = 0; m < (1 << D); ++m) {
-      Vec<D> c;
-      for (int k = 0; k < D; ++k) c[k] = ((m >> k) & 1) ? hi[k] : lo[k];
-      Vec<D> r = c - point;
-      if constexpr (D == 3) r -= r.dot(rot_.axis) * rot_.axis;
-      rmax_ = std::max(rmax_, r.norm());
-    }
+    // The body's farthest point from the axis.
+    rmax_ = body_->reach_from_axis(point, rot_.axis);
     blo_ = lo;
     bhi_ = hi;
   }

@@ -9,6 +9,7 @@
 // the model), its scene keys in io/scene.cpp and its tests. Nothing in engine/ changes.
 #pragma once
 
+#include <algorithm>
 #include <array>
 #include <cmath>
 #include <cstdint>
@@ -166,6 +167,22 @@ class WallShape {
   // for shapes at rest, shapes of revolution turning about their own axis (the surface moves, the
   // geometry stays) and oscillating planes (their stroke widens the list instead).
   virtual double sweep_speed() const { return 0.0; }
+  // The largest distance of a surface point from the axis through p along unit a (2D: from p); by
+  // default from the corners of bounds() (a bounded shape's box), tighter where a shape knows its
+  // points (a mesh's vertices). contact/rotating.hpp's speed bound and swept box.
+  virtual double reach_from_axis(const Vec<D>& p, const Vec<D>& a) const {
+    Vec<D> lo, hi;
+    if (!bounds(lo, hi)) return std::numeric_limits<double>::infinity();
+    double r = 0.0;
+    for (int m = 0; m < (1 << D); ++m) {
+      Vec<D> c;
+      for (int k = 0; k < D; ++k) c[k] = ((m >> k) & 1) ? hi[k] : lo[k];
+      Vec<D> d = c - p;
+      if constexpr (D == 3) d -= d.dot(a) * a;
+      r = std::max(r, d.norm());
+    }
+    return r;
+  }
   // Whether the surface moves at all (a moving wall keeps the grains touching it awake).
   virtual bool moving() const { return false; }
 

@@ -700,7 +700,10 @@ void check_walls_fit(const std::string& file, const System<D>& sys) {
   for (const auto& w : sys.walls) {
     Vec<D> lo, hi;
     if (!w.geometry().bounds(lo, hi)) continue;
-    const double tol = 1e-9 * (sys.upper - sys.lower).norm();
+    // Round-off, and a binary STL file's float coordinates (relative 6e-8): a mesh made to the
+    // domain's size reaches beyond it by that much.
+    const double tol = 1e-9 * (sys.upper - sys.lower).norm() +
+                       2e-7 * std::max(sys.upper.cwiseAbs().maxCoeff(), sys.lower.cwiseAbs().maxCoeff());
     for (int k = 0; k < D; ++k)
       if (lo[k] < sys.lower[k] - tol || hi[k] > sys.upper[k] + tol)
         fail(file, fmt::format("wall.{}", w.name),

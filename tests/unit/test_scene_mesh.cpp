@@ -66,6 +66,9 @@ struct Files {
     test::box_triangles(Vec<3>::Constant(-100.0), Vec<3>::Constant(100.0), true, v, t);  // millimetres
     test::write_stl_ascii((dir / "box_ascii.stl").string(), v, t);
     test::write_stl_binary((dir / "box_binary.stl").string(), v, t);
+    // The domain's own box, in float: 0.2 is 0.200000003 (a CAD export made to the domain's size).
+    test::box_triangles(Vec<3>::Constant(-0.2), Vec<3>::Constant(0.2), true, v, t);
+    test::write_stl_binary((dir / "domain_box.stl").string(), v, t);
     std::ofstream(dir / "empty.stl").close();
     std::ofstream(dir / "no_facets.stl") << "solid nothing\nendsolid nothing\n";
     std::ofstream(dir / "malformed.stl") << "solid x\n facet normal 0 0 1\n  outer loop\n   vertex 0 0 0\n"
@@ -127,6 +130,8 @@ TEST(SceneMesh, AsciiAndBinaryFilesGiveTheSameMeshScaledAndMoved) {
     // A grain at the centre, 0.1 from the sides, 0.1 above the floor at z = -0.05.
     EXPECT_NEAR(m.at(Vec<3>(0.0, 0.0, 0.05), 0.01, 0.0).gap, 0.09, 1e-12) << f;
   }
+  // A mesh made to the domain's size in float coordinates fits (float round-off is tolerated).
+  EXPECT_NO_THROW(load_scene_string(scene("[wall.box]\ntype = \"mesh\"\nfile = \"domain_box.stl\"\n"), "mesh.toml", dir, {}));
   const StlMesh a = read_stl(dir + "/box_ascii.stl"), b = read_stl(dir + "/box_binary.stl");
   EXPECT_FALSE(a.binary);
   EXPECT_TRUE(b.binary);

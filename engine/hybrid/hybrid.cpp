@@ -676,21 +676,11 @@ class HybridEngine final : public edm::EdmCore<D, CalendarQueue, HybridEngine<D>
       we_.push_back({i, w, f, wall_contact_of(w, i), 0, Vec<D>::Zero()});
     });
   }
-  // Calls fn(w, feature) for each wall (each feature of a multi-contact wall) within the list skin
-  // of i (a moving wall: plus twice its stroke).
+  // Calls fn(w, feature) for each wall (feature) within the list skin of i (engine/soft/forces.hpp).
   template <class Fn>
   void walls_in_reach(int i, double t, Fn&& fn) {
-    for (std::size_t w = 0; w < shapes_.size(); ++w) {
-      const WallShape<D>& W = *shapes_[w];
-      const double reach = lskin_ + 2.0 * W.stroke();
-      if (W.multi_contact()) {
-        feats_.clear();
-        W.features_near(hot_[i].x, hot_[i].R, reach, t, feats_);
-        for (const std::uint32_t f : feats_) fn(static_cast<int>(w), f);
-      } else if (W.at(hot_[i].x, hot_[i].R, t).gap < reach) {
-        fn(static_cast<int>(w), 0u);
-      }
-    }
+    soft::walls_in_reach<D>(shapes_, hot_[i].x, hot_[i].R, lskin_, t, feats_,
+                            [&](std::uint32_t w, std::uint32_t f) { fn(static_cast<int>(w), f); });
   }
 
   // Moves soft i into its cell after a substep that took it out of its cell's box (cblo_, cbhi_;

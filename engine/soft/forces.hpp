@@ -300,6 +300,25 @@ template <int D, NormalLaw Law, bool Rot, class Shape = WallShape<D>>
   return out;
 }
 
+// The wall-list entries of a particle at x (radius R) at time t: fn(w, feature) for each wall whose
+// gap may fall below skin before the list is rebuilt (a moving wall: plus twice its stroke), each
+// feature of a multi-contact wall (a mesh's facets) on its own. TDM's and the hybrid's list builds.
+template <int D, class Fn>
+void walls_in_reach(const std::vector<const WallShape<D>*>& shapes, const Vec<D>& x, double R, double skin, double t,
+                    std::vector<std::uint32_t>& scratch, Fn&& fn) {
+  for (std::size_t w = 0; w < shapes.size(); ++w) {
+    const WallShape<D>& W = *shapes[w];
+    const double reach = skin + 2.0 * W.stroke();
+    if (W.multi_contact()) {
+      scratch.clear();
+      W.features_near(x, R, reach, t, scratch);
+      for (const std::uint32_t f : scratch) fn(static_cast<std::uint32_t>(w), f);
+    } else if (W.at(x, R, t).gap < reach) {
+      fn(static_cast<std::uint32_t>(w), 0u);
+    }
+  }
+}
+
 // The walls of one force evaluation: each plane frozen at the evaluation's times (PlaneInstant,
 // whose calls the compiler inlines), any other shape through its interface. refresh() before each
 // evaluation; with_wall(w, feature, f) calls f with the one or the other (a multi-contact shape:

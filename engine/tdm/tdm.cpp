@@ -418,25 +418,14 @@ void TdmEngine<D>::rebuild() {
   wl_f_.clear();
   const double t_now = static_cast<double>(steps_) * dt_;
   std::vector<std::uint32_t> feats;
-  for (std::size_t i = 0; i < N_; ++i)
-    for (std::size_t w = 0; w < shapes_.size() && !is_fixed(i); ++w) {  // a fixed grain meets no wall
-      const WallShape<D>& W = *shapes_[w];
-      // A moving wall reaches up to twice its stroke beyond where it is now.
-      const double reach = skin_ + 2.0 * W.stroke();
-      if (W.multi_contact()) {
-        feats.clear();
-        W.features_near(x_[i], R_[i], reach, t_now, feats);
-        for (const std::uint32_t f : feats) {
-          wl_i_.push_back(static_cast<std::uint32_t>(i));
-          wl_w_.push_back(static_cast<std::uint32_t>(w));
-          wl_f_.push_back(f);
-        }
-      } else if (W.at(x_[i], R_[i], t_now).gap < reach) {
-        wl_i_.push_back(static_cast<std::uint32_t>(i));
-        wl_w_.push_back(static_cast<std::uint32_t>(w));
-        wl_f_.push_back(0);
-      }
-    }
+  for (std::size_t i = 0; i < N_; ++i) {
+    if (is_fixed(i)) continue;  // a fixed grain meets no wall
+    soft::walls_in_reach<D>(shapes_, x_[i], R_[i], skin_, t_now, feats, [&](std::uint32_t w, std::uint32_t f) {
+      wl_i_.push_back(static_cast<std::uint32_t>(i));
+      wl_w_.push_back(w);
+      wl_f_.push_back(f);
+    });
+  }
   wl_touch_.assign(wl_i_.size(), 0);
   if (rot_) wl_xi_.assign(wl_i_.size(), Vec<D>::Zero());
   if (!mem.empty())

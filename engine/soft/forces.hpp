@@ -321,19 +321,15 @@ void walls_in_reach(const std::vector<const WallShape<D>*>& shapes, const Vec<D>
 
 // The walls of one force evaluation: each plane frozen at the evaluation's times (PlaneInstant,
 // whose calls the compiler inlines), any other shape through its interface. refresh() before each
-// evaluation; with_wall(w, feature, f) calls f with the one or the other (a multi-contact shape:
-// its feature): the physics is the same.
+// evaluation; with_wall(w, feature, f) calls f with the one or the other (the shape's feature:
+// contact/wall.hpp): the physics is the same.
 template <int D>
 class WallsNow {
  public:
   void assign(const std::vector<const WallShape<D>*>& shapes) {
     shapes_ = shapes;
     planes_.clear();
-    multi_.clear();
-    for (const WallShape<D>* s : shapes_) {
-      planes_.push_back(as_plane<D>(s));
-      multi_.push_back(s->multi_contact());
-    }
+    for (const WallShape<D>* s : shapes_) planes_.push_back(as_plane<D>(s));
     now_.assign(shapes_.size(), PlaneInstant<D>{});
   }
   void refresh(double t, double hdt) {
@@ -341,19 +337,18 @@ class WallsNow {
       if (planes_[w]) now_[w] = planes_[w]->instant(t, hdt);
   }
   // Wall w's feature `feature` (contact/wall.hpp; 0 for a shape with one contact per grain).
+  // Two forms only (the loop inlines each): a frozen plane, or any shape's feature through the
+  // interface (at_feature: a shape with one contact per grain answers its at()).
   template <class F>
   [[gnu::always_inline]] auto with_wall(std::size_t w, std::uint32_t feature, F&& f) const {
     if (planes_[w]) return f(now_[w]);
-    if (multi_[w]) [[unlikely]]
-      return f(FeatureView<D>{*shapes_[w], feature});
-    return f(*shapes_[w]);
+    return f(FeatureView<D>{*shapes_[w], feature});
   }
   std::size_t size() const { return shapes_.size(); }
 
  private:
   std::vector<const WallShape<D>*> shapes_;
   std::vector<const PlaneWall<D>*> planes_;  // shapes_[w] where it is a plane, else null
-  std::vector<std::uint8_t> multi_;           // shapes_[w] has several features (a mesh)
   std::vector<PlaneInstant<D>> now_;
 };
 

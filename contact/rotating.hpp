@@ -13,10 +13,14 @@
 // surface, |v + g t| + |omega| r_max, r_max the body's farthest point from the axis
 // (WallShape::reach_from_axis: a mesh's farthest vertex, else its box's farthest corner): stepping by
 // g / that bound never passes the first touch; e.g. Mirtich, "Impulse-based dynamic simulation of
-// rigid body systems", PhD thesis, Berkeley 1996, ch. 4). The steps end at a gap below 1e-13 of
-// the particle's size (the touch, within round-off), at the engine's limit, or after a bounded
-// number of steps: then the time reached is returned as a checkpoint (the gap still open) for the
-// engine to predict again from, so a prediction's cost stays bounded.
+// rigid body systems", PhD thesis, Berkeley 1996, ch. 4). Once the gap is below 1e-6 R and
+// closing, a trial step past the linear estimate of the touch that finds the gap closed gives a
+// bracket, narrowed to round-off on the gap itself (safe_root, contact/poly.hpp). The search
+// starts where the flight enters the box of every position the body takes (padded by R) and ends
+// at its exit, at the engine's limit, or after a bounded number of steps: then the time reached is
+// returned as a checkpoint (the gap still open) for the engine to predict again from, so a
+// prediction's cost stays bounded. Just after a bounce (touching, leaving) the steps are at least
+// 1e-9 R / bound long.
 // The soft engines' neighbour lists: sweep_speed() = |omega| r_max, the fastest any surface point
 // moves, counts towards the list's skin (engine/tdm, engine/hybrid rebuild when the grains' and
 // the surface's motions together could close the skin).

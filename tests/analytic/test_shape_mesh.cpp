@@ -28,6 +28,7 @@ namespace {
 
 using test::FlightCase;
 using test::ImpactStats;
+using test::merge;
 using test::VecL;
 
 constexpr int kQuick = 2000;
@@ -53,17 +54,6 @@ FlightCase<3> random_flight(std::mt19937_64& rng, const MeshWall& m, bool gravit
     f.v = (0.3 + 1.7 * u01(rng)) * test::random_unit<3>(rng);
     f.g = gravity ? Vec<3>((0.5 + 4.5 * u01(rng)) * test::random_unit<3>(rng)) : Vec<3>::Zero();
     if (test::mesh_gap_ld(m, test::to_ld<3>(f.x), f.R) > 1e-9L) return f;
-  }
-}
-
-void merge(ImpactStats& total, const ImpactStats& s) {
-  total.cases += s.cases;
-  total.hits += s.hits;
-  total.missed += s.missed;
-  total.early += s.early;
-  if (s.worst > total.worst || s.missed + s.early > 0) {
-    total.worst = std::max(total.worst, s.worst);
-    total.worst_case = s.worst_case;
   }
 }
 

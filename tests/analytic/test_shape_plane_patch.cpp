@@ -25,6 +25,7 @@ namespace {
 
 using test::FlightCase;
 using test::ImpactStats;
+using test::merge;
 using test::VecL;
 using test::expect_limit_consistent;
 
@@ -84,17 +85,6 @@ FlightCase<D> random_flight(std::mt19937_64& rng, const BoundedPlane<D>& p, bool
     f.v = (0.3 + 1.7 * u01(rng)) * test::random_unit<D>(rng);
     f.g = gravity ? Vec<D>((0.5 + 4.5 * u01(rng)) * test::random_unit<D>(rng)) : Vec<D>::Zero();
     if (gap_ld<D>(p, test::to_ld<D>(f.x), f.R) > 1e-9L) return f;
-  }
-}
-
-void merge(ImpactStats& total, const ImpactStats& s) {
-  total.cases += s.cases;
-  total.hits += s.hits;
-  total.missed += s.missed;
-  total.early += s.early;
-  if (s.worst > total.worst || s.missed + s.early > 0) {
-    total.worst = std::max(total.worst, s.worst);
-    total.worst_case = s.worst_case;
   }
 }
 
@@ -380,26 +370,9 @@ void check_turntable(bool hybrid) {
   const RunResult<3> res = test::run_soft<3>(s, hybrid, T, 1e-3, &tr);
   ASSERT_EQ(res.status, "ok") << res.message;
   // Least-squares slope of the unwrapped direction angle of v over [0.5, T].
-  double prev = 0.0, off = 0.0, sx = 0, sy = 0, sxx = 0, sxy = 0;
   int m = 0;
-  for (std::size_t k = 0; k < tr.track.t.size(); ++k) {
-    double a = std::atan2(tr.track.v[k][1], tr.track.v[k][0]);
-    if (k > 0) {
-      if (a + off - prev > 3.141592653589793) off -= 2.0 * 3.141592653589793;
-      if (a + off - prev < -3.141592653589793) off += 2.0 * 3.141592653589793;
-    }
-    a += off;
-    prev = a;
-    const double t = tr.track.t[k];
-    if (t < 0.5) continue;
-    sx += t;
-    sy += a;
-    sxx += t * t;
-    sxy += t * a;
-    ++m;
-  }
+  const double slope = test::velocity_turning_rate(tr.track, 0.5, m);
   ASSERT_GT(m, 100);
-  const double slope = (m * sxy - sx * sy) / (m * sxx - sx * sx);
   const double q = 0.4, l = r - delta, qq = q * r * r / (l * l);
   const double expected = Omega * qq / (1.0 + qq);
   std::printf("turntable (%s): velocity turns at %.6f rad/s, closed form %.6f (rigid 2/7 Omega = %.6f), "

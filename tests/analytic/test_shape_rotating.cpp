@@ -147,26 +147,9 @@ void check_turning_lid(bool hybrid) {
   const double T = 3.0;
   const RunResult<3> res = test::run_soft<3>(s, hybrid, T, 1e-3, &tr);
   ASSERT_EQ(res.status, "ok") << res.message;
-  double prev = 0.0, off = 0.0, sx = 0, sy = 0, sxx = 0, sxy = 0;
   int m = 0;
-  for (std::size_t k = 0; k < tr.track.t.size(); ++k) {
-    double a = std::atan2(tr.track.v[k][1], tr.track.v[k][0]);
-    if (k > 0) {
-      if (a + off - prev > kPi) off -= 2.0 * kPi;
-      if (a + off - prev < -kPi) off += 2.0 * kPi;
-    }
-    a += off;
-    prev = a;
-    const double t = tr.track.t[k];
-    if (t < 0.5) continue;
-    sx += t;
-    sy += a;
-    sxx += t * t;
-    sxy += t * a;
-    ++m;
-  }
+  const double slope = test::velocity_turning_rate(tr.track, 0.5, m);
   ASSERT_GT(m, 100);
-  const double slope = (m * sxy - sx * sy) / (m * sxx - sx * sx);
   const double q = 0.4, l = r - delta, qq = q * r * r / (l * l);
   const double expected = Omega * qq / (1.0 + qq);
   std::printf("turning box lid (%s): velocity turns at %.6f rad/s, closed form %.6f, ratio - 1 = %.3g\n",

@@ -190,6 +190,32 @@ struct Tracker final : Observer<D> {
   }
 };
 
+// The rate (rad/s) at which a tracked grain's horizontal velocity turns: least-squares slope of
+// its unwrapped direction angle over the snapshots at t >= t0 (a sphere on a turntable); the
+// number of snapshots used in m.
+inline double velocity_turning_rate(const Track& track, double t0, int& m) {
+  const double pi = 3.141592653589793;
+  double prev = 0.0, off = 0.0, sx = 0, sy = 0, sxx = 0, sxy = 0;
+  m = 0;
+  for (std::size_t k = 0; k < track.t.size(); ++k) {
+    double a = std::atan2(track.v[k][1], track.v[k][0]);
+    if (k > 0) {
+      if (a + off - prev > pi) off -= 2.0 * pi;
+      if (a + off - prev < -pi) off += 2.0 * pi;
+    }
+    a += off;
+    prev = a;
+    const double t = track.t[k];
+    if (t < t0) continue;
+    sx += t;
+    sy += a;
+    sxx += t * t;
+    sxy += t * a;
+    ++m;
+  }
+  return (m * sxy - sx * sy) / (m * sxx - sx * sx);
+}
+
 // Runs s with TDM (one thread) or the hybrid to end_time with snapshots every `every`.
 template <int D>
 RunResult<D> run_soft(const System<D>& s, bool hybrid, double end_time, double every, Observer<D>* obs) {

@@ -70,6 +70,11 @@ TEST(FlowGeometryValidation, ElasticGasInAClosedTubeKeepsItsEnergyOverAMillionCo
   EXPECT_LT(worst, 1e-12);
 }
 
+// Whether a grain of radius R at x lies clear inside the cube [0, L]^3 (gas placement).
+auto inside_cube(double L, double R) {
+  return [=](const Vec<3>& x) { return (x.array() > 1.01 * R).all() && (x.array() < L - 1.01 * R).all(); };
+}
+
 TEST(FlowGeometryValidation, ElasticGasInAPipeBendKeepsItsEnergyOverAMillionCollisions) {
   // Radius 0.03, from the origin along +x: 0.1 straight, a 90 degree bend of radius 0.08 about z
   // (towards +y), 0.1 straight; hemispherical caps close both ends.
@@ -105,7 +110,7 @@ TEST(FlowGeometryValidation, ElasticGasInAMeshBoxKeepsItsEnergyOverAMillionColli
   System<3> s = test::hard_material_system<3>(Vec<3>::Constant(-0.001), Vec<3>::Constant(L + 0.001));
   s.walls.push_back(Wall<3>{"box", 0, test::box_mesh(Vec<3>::Zero(), Vec<3>::Constant(L), true)});
   test::fill_gas<3>(
-      s, 2000, R, [&](const Vec<3>& x) { return (x.array() > 1.01 * R).all() && (x.array() < L - 1.01 * R).all(); }, 8);
+      s, 2000, R, inside_cube(L, R), 8);
   ASSERT_EQ(s.size(), 2000u);
   const double ke0 = test::kinetic<3>(s.v);
   EdmSettings set;
@@ -209,7 +214,7 @@ TEST(FlowGeometryValidation, AMeshBoxAndSixPlanesGiveTheSameEdmCollisions) {
   const double L = 0.1, R = 0.0015;
   System<3> s = test::hard_material_system<3>(Vec<3>::Constant(-0.001), Vec<3>::Constant(L + 0.001));
   test::fill_gas<3>(
-      s, 1000, R, [&](const Vec<3>& x) { return (x.array() > 1.01 * R).all() && (x.array() < L - 1.01 * R).all(); }, 9);
+      s, 1000, R, inside_cube(L, R), 9);
   System<3> mesh = s;
   mesh.walls.push_back(Wall<3>{"box", 0, test::box_mesh(Vec<3>::Zero(), Vec<3>::Constant(L), true)});
   for (int k = 0; k < 3; ++k) {

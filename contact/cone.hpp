@@ -16,7 +16,7 @@
 // straight flight, quartic under gravity; the rims are offset tori (quartic / octic; a zero-radius
 // end and the 2D segment ends are points: quadratic / quartic); roots are taken only where the
 // foot point lies on the generator and on the right nappe, the earliest one refined on the gap
-// of at().
+// of at() evaluated in long double.
 // bracketed() is true: the engine passes its earliest event so far as the limit, and a flight that
 // cannot reach the surface before it (gap > |v| limit + |g| limit^2 / 2) costs one at() call.
 #pragma once
@@ -90,7 +90,9 @@ class ConeWall final : public WallShape<D> {
     const Flight<D> f1(x, v, g, end());
     t = std::min(t, end_time(f1, r2_, R, std::min(t, limit), approaching));
     if (!(t < limit)) return kNever;
-    t = refine_on_gap([&](double s) { return at(Vec<D>(f.at(s) + point_), R, 0.0).gap; }, t);
+    // The root on the gap in long double (flight_point_x: grazing touches of the curved surface).
+    t = refine_on_gap(
+        [&](double s) { return revolved_segment_gap_x<D>(point_, axis_, r1_, r2_, length_, x, v, g, s, R); }, t);
     return t < limit ? t : kNever;
   }
 

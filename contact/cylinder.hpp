@@ -16,7 +16,7 @@
 // Impact times (contact/shape_features.hpp): the lateral offset cylinder (rho = radius -+ R) is a
 // quadratic in t for a straight flight and a quartic under gravity; the rims of a tube are offset
 // tori (quartic, octic under gravity); roots are taken only where the foot point lies on the tube
-// (0 <= z <= length), and the earliest one is refined on the gap of at().
+// (0 <= z <= length), and the earliest one is refined on the gap of at() evaluated in long double.
 // bracketed() is true: the engine passes its earliest event so far as the limit, and a flight that
 // cannot reach the surface before it (gap > |v| limit + |g| limit^2 / 2) costs one at() call.
 #pragma once
@@ -129,7 +129,15 @@ class CylinderWall final : public WallShape<D> {
       t = std::min(t, feature::rim(f1, axis_, radius_, R, std::min(t, limit), approaching));
     }
     if (!(t < limit)) return kNever;
-    t = refine_on_gap([&](double s) { return at(f.at(s) + point_, R, 0.0).gap; }, t);
+    // The root on the gap in long double (flight_point_x: grazing touches of the curved surface).
+    t = refine_on_gap(
+        [&](double s) {
+          if (finite_) return revolved_segment_gap_x<D>(point_, axis_, radius_, radius_, length_, x, v, g, s, R);
+          const VecX<D> r = flight_point_x<D>(x, v, g, s, point_), a = axis_.template cast<long double>();
+          const long double rho = VecX<D>(r - r.dot(a) * a).norm(), Rc = radius_;
+          return (inside_ ? Rc - rho : rho - Rc) - static_cast<long double>(R);
+        },
+        t);
     return t < limit ? t : kNever;
   }
 

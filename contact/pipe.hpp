@@ -42,8 +42,9 @@
 // first closing of the pipe's gap happens at the nearest piece, at a root of that piece's feature
 // (the pieces join tangentially, so a point nearest to a joint lies in the common cross-section and
 // both pieces see it as an interior point), hence the earliest accepted root is the impact; it is
-// refined on the gap of at(). "Closed to round-off" is gap <= 1e-12 (radius + the size of the
-// pipe's box): a flight that passes the wall closer than that counts as touching it.
+// refined on the gap of at() evaluated in long double, on the pieces' long-double frames (place).
+// "Closed to round-off" is gap <= 1e-12 (radius + the size of the pipe's box): a flight that passes
+// the wall closer than that counts as touching it.
 // bracketed() is true: the engine passes its earliest event so far as the limit, and a flight that
 // cannot reach the surface before it (gap > |v| limit + |g| limit^2 / 2) costs one at() call.
 // has_normal: every unit vector (the caps and bends give all directions).
@@ -58,6 +59,7 @@
 #include <limits>
 #include <stdexcept>
 #include <string>
+#include <type_traits>
 #include <vector>
 
 #include "contact/predict.hpp"
@@ -96,61 +98,29 @@ class PipeWall final : public WallShape<D> {
  public:
   PipeWall(const Vec<D>& start, const Vec<D>& direction, double radius, const std::vector<PipePiece<D>>& pieces)
       : start_(start), radius_(radius), pieces_(pieces) {
-    constexpr double kPi = 3.14159265358979323846;
     if (!(radius > 0.0) || !std::isfinite(radius)) throw std::invalid_argument("pipe: radius must be finite and > 0");
     const double dn = direction.norm();
     if (!(dn > 0.0) || !std::isfinite(dn)) throw std::invalid_argument("pipe: direction must be a nonzero vector");
     if (pieces.empty()) throw std::invalid_argument("pipe: at least one piece is needed");
     dir0_ = direction / dn;
-    Vec<D> p = start_, d = dir0_;
+    std::vector<Frame<double>> fd;
+    place<double>(direction, fd);
+    place<long double>(direction, framesx_);
     for (std::size_t i = 0; i < pieces.size(); ++i) {
-      const PipePiece<D>& pc = pieces[i];
       Seg s;
-      s.p0 = p;
-      s.d0 = d;
-      if (pc.kind == PipePiece<D>::Kind::Straight) {
-        if (!(pc.length > 0.0) || !std::isfinite(pc.length))
-          throw std::invalid_argument(fmt::format("pipe: piece {}: a straight's length must be finite and > 0", i));
-        s.arc = false;
-        s.L = pc.length;
-        p = p + pc.length * d;
+      static_cast<Frame<double>&>(s) = fd[i];
+      s.arc = pieces[i].kind == PipePiece<D>::Kind::Arc;
+      if (!s.arc) {
+        s.L = pieces[i].length;
       } else {
-        if (!(pc.bend_radius > radius) || !std::isfinite(pc.bend_radius))
-          throw std::invalid_argument(fmt::format(
-              "pipe: piece {}: the bend radius ({}) must be finite and > the pipe's radius ({})", i, pc.bend_radius,
-              radius));
-        if (!(pc.angle != 0.0) || !(std::abs(pc.angle) <= 2.0 * kPi))
-          throw std::invalid_argument(fmt::format("pipe: piece {}: an arc's angle must be nonzero, |angle| <= 2 pi", i));
-        Vec<D> towards;  // unit, from the arc's start towards its centre
-        if constexpr (D == 2) {
-          towards = Vec<D>(-d[1], d[0]) * (pc.angle > 0.0 ? 1.0 : -1.0);
-        } else {
-          const double an = pc.axis.norm();
-          if (!(an > 0.0) || !std::isfinite(an))
-            throw std::invalid_argument(fmt::format("pipe: piece {}: an arc's axis must be a nonzero vector", i));
-          Vec<D> a = pc.axis / an;
-          if (std::abs(a.dot(d)) > 1e-9)
-            throw std::invalid_argument(
-                fmt::format("pipe: piece {}: an arc's axis must be perpendicular to the direction there ({})", i,
-                            fmt::join(d, ", ")));
-          a = (a - a.dot(d) * d).normalized();
-          towards = a.cross(d) * (pc.angle > 0.0 ? 1.0 : -1.0);
-        }
-        s.arc = true;
-        s.Rb = pc.bend_radius;
-        s.phi = std::abs(pc.angle);
-        s.c = p + s.Rb * towards;
-        s.e0 = -towards;
-        s.e1 = d;
+        s.Rb = pieces[i].bend_radius;
+        s.phi = std::abs(pieces[i].angle);
         if constexpr (D == 3) s.n = s.e0.cross(s.e1);
         s.L = s.Rb * s.phi;
-        p = s.c + s.Rb * (std::cos(s.phi) * s.e0 + std::sin(s.phi) * s.e1);
-        d = (-std::sin(s.phi) * s.e0 + std::cos(s.phi) * s.e1).normalized();
       }
-      s.p1 = p;
-      s.d1 = d;
       segs_.push_back(s);
     }
+    const Vec<D> p = segs_.back().p1, d = segs_.back().d1;
     end_ = p;
     dir1_ = d;
     Vec<D> lo, hi;
@@ -183,12 +153,16 @@ class PipeWall final : public WallShape<D> {
     return s + " (grains inside, hemispherical caps beyond the ends)";
   }
 
-  // The distance from x to the centreline and its nearest point q, with the centreline's tangent there.
-  double distance(const Vec<D>& x, Vec<D>& q, Vec<D>& tangent) const {
-    double best = std::numeric_limits<double>::infinity();
-    for (const Seg& s : segs_) {
-      Vec<D> qs, ts;
-      const double d = s.nearest(x, qs, ts);
+  // The distance from x to the centreline and its nearest point q, with the centreline's tangent
+  // there; in the precision T of x.
+  template <class T>
+  T distance(const Eigen::Matrix<T, D, 1>& x, Eigen::Matrix<T, D, 1>& q, Eigen::Matrix<T, D, 1>& tangent) const {
+    T best = std::numeric_limits<T>::infinity();
+    for (std::size_t i = 0; i < segs_.size(); ++i) {
+      Eigen::Matrix<T, D, 1> qs, ts;
+      T d;
+      if constexpr (std::is_same_v<T, double>) d = segs_[i].nearest(static_cast<const Frame<double>&>(segs_[i]), x, qs, ts);
+      else d = segs_[i].nearest(framesx_[i], x, qs, ts);
       if (d < best) {
         best = d;
         q = qs;
@@ -265,7 +239,14 @@ class PipeWall final : public WallShape<D> {
                                         std::min(t, limit), approaching));
     }
     if (!(t < limit)) return kNever;
-    t = refine_on_gap([&](double s) { return at(Vec<D>(x + s * (v + (0.5 * s) * g)), R, 0.0).gap; }, t);
+    // The grazing touches of the bends need the gap in long double (flight_point_x).
+    t = refine_on_gap(
+        [&](double s) {
+          VecX<D> q, tg;
+          return static_cast<long double>(radius_) - static_cast<long double>(R) -
+                 distance<long double>(flight_point_x<D>(x, v, g, s, Vec<D>::Zero()), q, tg);
+        },
+        t);
     return t < limit ? t : kNever;
   }
 
@@ -378,45 +359,114 @@ class PipeWall final : public WallShape<D> {
   }
 
  private:
-  // One piece of the centreline, placed.
-  struct Seg {
+  // Where one piece of the centreline lies, in the precision T: its ends p0, p1 and unit tangents
+  // there d0, d1; a bend's centre c and the unit vectors e0 (centre -> start) and e1 (the tangent
+  // at the start), its points c + Rb (cos th e0 + sin th e1), 0 <= th <= phi.
+  template <class T>
+  struct Frame {
+    using VT = Eigen::Matrix<T, D, 1>;
+    VT p0 = VT::Zero(), p1 = VT::Zero(), d0 = VT::Zero(), d1 = VT::Zero();
+    VT c = VT::Zero(), e0 = VT::Zero(), e1 = VT::Zero();
+  };
+
+  // The pieces placed one after the other from start_ along `direction`, in the precision T (the
+  // parameters are checked in the double pass, which comes first). The long-double frames serve
+  // the refinement of impact times (a grazing root moves by ~1e-9 relative per 1e-16 of shift of
+  // the wall: the double frames, rounded along the chain, are 1e-16 off the pipe the pieces
+  // define).
+  template <class T>
+  void place(const Vec<D>& direction, std::vector<Frame<T>>& out) const {
+    using VT = Eigen::Matrix<T, D, 1>;
+    constexpr bool check = std::is_same_v<T, double>;
+    constexpr T kPi = T(3.14159265358979323846L);
+    const VT dir = direction.template cast<T>();
+    VT p = start_.template cast<T>(), d = dir / dir.norm();
+    out.clear();
+    for (std::size_t i = 0; i < pieces_.size(); ++i) {
+      const PipePiece<D>& pc = pieces_[i];
+      Frame<T> s;
+      s.p0 = p;
+      s.d0 = d;
+      if (pc.kind == PipePiece<D>::Kind::Straight) {
+        if (check && (!(pc.length > 0.0) || !std::isfinite(pc.length)))
+          throw std::invalid_argument(fmt::format("pipe: piece {}: a straight's length must be finite and > 0", i));
+        p = p + T(pc.length) * d;
+      } else {
+        if (check && (!(pc.bend_radius > radius_) || !std::isfinite(pc.bend_radius)))
+          throw std::invalid_argument(fmt::format(
+              "pipe: piece {}: the bend radius ({}) must be finite and > the pipe's radius ({})", i, pc.bend_radius,
+              radius_));
+        if (check && (!(pc.angle != 0.0) || !(std::abs(pc.angle) <= 2.0 * kPi)))
+          throw std::invalid_argument(fmt::format("pipe: piece {}: an arc's angle must be nonzero, |angle| <= 2 pi", i));
+        VT towards;  // unit, from the arc's start towards its centre
+        if constexpr (D == 2) {
+          towards = VT(-d[1], d[0]) * T(pc.angle > 0.0 ? 1 : -1);
+        } else {
+          const VT ax = pc.axis.template cast<T>();
+          const T an = ax.norm();
+          if (check && (!(an > 0.0) || !std::isfinite(an)))
+            throw std::invalid_argument(fmt::format("pipe: piece {}: an arc's axis must be a nonzero vector", i));
+          VT a = ax / an;
+          if (check && std::abs(a.dot(d)) > 1e-9)
+            throw std::invalid_argument(
+                fmt::format("pipe: piece {}: an arc's axis must be perpendicular to the direction there ({})", i,
+                            fmt::join(d, ", ")));
+          a = (a - a.dot(d) * d).normalized();
+          towards = a.cross(d) * T(pc.angle > 0.0 ? 1 : -1);
+        }
+        const T Rb = pc.bend_radius, phi = std::abs(T(pc.angle));
+        s.c = p + Rb * towards;
+        s.e0 = -towards;
+        s.e1 = d;
+        p = s.c + Rb * (std::cos(phi) * s.e0 + std::sin(phi) * s.e1);
+        d = (-std::sin(phi) * s.e0 + std::cos(phi) * s.e1).normalized();
+      }
+      s.p1 = p;
+      s.d1 = d;
+      out.push_back(s);
+    }
+  }
+
+  // One piece of the centreline, placed (its double frame; the plane normal n = e0 x e1 of a 3D
+  // bend, its radius Rb and angle phi > 0).
+  struct Seg : Frame<double> {
     bool arc = false;
-    Vec<D> p0 = Vec<D>::Zero(), p1 = Vec<D>::Zero(), d0 = Vec<D>::Zero(), d1 = Vec<D>::Zero();  // ends, tangents
-    double L = 0.0;         // length (a straight's; a bend's arc length)
-    // A bend: centre c, the unit vectors e0 (centre -> start) and e1 (the tangent at the start), the
-    // plane normal n = e0 x e1 (3D), radius Rb, angle phi > 0; points c + Rb (cos th e0 + sin th e1),
-    // 0 <= th <= phi.
-    Vec<D> c = Vec<D>::Zero(), e0 = Vec<D>::Zero(), e1 = Vec<D>::Zero(), n = Vec<D>::Zero();
+    double L = 0.0;  // length (a straight's; a bend's arc length)
+    Vec<D> n = Vec<D>::Zero();
     double Rb = 0.0, phi = 0.0;
 
     // The nearest point q of this piece to x (a straight: the clamped projection; a bend: the point
     // of the circle in x's direction when that lies within the arc, else the nearer end point, as the
     // distance to the circle's point at angle th grows with |th - the direction's angle|), its
     // distance and the tangent there.
-    double nearest(const Vec<D>& x, Vec<D>& q, Vec<D>& t) const {
+    // In the precision T of x (double, or long double for refining impact times), on the frame f
+    // of this piece in that precision.
+    template <class T>
+    T nearest(const Frame<T>& f, const Eigen::Matrix<T, D, 1>& x, Eigen::Matrix<T, D, 1>& q,
+              Eigen::Matrix<T, D, 1>& t) const {
       if (!arc) {
-        const double s = std::clamp((x - p0).dot(d0), 0.0, L);
-        q = p0 + s * d0;
-        t = d0;
+        const T s = std::clamp(T((x - f.p0).dot(f.d0)), T(0), T(L));
+        q = f.p0 + s * f.d0;
+        t = f.d0;
         return (x - q).norm();
       }
-      const Vec<D> r = x - c;
-      const double a = r.dot(e0), b = r.dot(e1);
-      double th = (a == 0.0 && b == 0.0) ? 0.0 : std::atan2(b, a);
-      if (th < 0.0) th += 2.0 * 3.14159265358979323846;
-      if (th <= phi) {
-        q = c + Rb * (std::cos(th) * e0 + std::sin(th) * e1);
-        t = -std::sin(th) * e0 + std::cos(th) * e1;
+      const Eigen::Matrix<T, D, 1> r = x - f.c;
+      const T a = r.dot(f.e0), b = r.dot(f.e1);
+      T th = (a == T(0) && b == T(0)) ? T(0) : std::atan2(b, a);
+      if (th < T(0)) th += T(2) * T(3.14159265358979323846L);
+      if (th <= T(phi)) {
+        q = f.c + T(Rb) * (std::cos(th) * f.e0 + std::sin(th) * f.e1);
+        t = -std::sin(th) * f.e0 + std::cos(th) * f.e1;
         return (x - q).norm();
       }
-      const double da = (x - p0).norm(), db = (x - p1).norm();
+      const T da = (x - f.p0).norm(), db = (x - f.p1).norm();
       if (da <= db) {
-        q = p0;
-        t = d0;
+        q = f.p0;
+        t = f.d0;
         return da;
       }
-      q = p1;
-      t = d1;
+      q = f.p1;
+      t = f.d1;
       return db;
     }
   };
@@ -425,6 +475,7 @@ class PipeWall final : public WallShape<D> {
   double radius_ = 0.0, tol_ = 0.0;
   std::vector<PipePiece<D>> pieces_;
   std::vector<Seg> segs_;
+  std::vector<Frame<long double>> framesx_;  // the pieces' frames in long double (place)
 };
 
 }  // namespace matep

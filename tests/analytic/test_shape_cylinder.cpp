@@ -186,8 +186,10 @@ FlightCase<D> inside_graze_flight(std::mt19937_64& rng, const CylinderWall<D>& c
 
 // Grazing flights: random flights shifted so that their closest approach dips in or passes clear
 // by 1e-9 R (test::make_graze; from inside a drum: inside_graze_flight); the reference decides hit
-// or miss. A grazing root is ill-conditioned: the gap's rate there is ~sqrt(2 kappa 1e-9 R) ~ 1e-5,
-// so the double gap's round-off (1e-16) moves it by ~1e-11 absolute: the tolerance is 1e-8 relative.
+// or miss, and the time must match within kTol = 1e-10 relative. A grazing root is ill-conditioned:
+// the gap's rate there is ~sqrt(2 kappa 1e-9 R) ~ 1e-5 of the speed, so a round-off of 1e-16 in the
+// gap would move it by ~1e-11 absolute (up to 1e-9 relative on a curved wall): the shapes refine the
+// root on the gap in long double (contact/shape_features.hpp, flight_point_x).
 template <int D>
 void graze_cases(double length, bool inside, Gravity grav, int n, std::uint64_t seed, const char* name) {
   std::mt19937_64 rng(seed);
@@ -209,7 +211,7 @@ void graze_cases(double length, bool inside, Gravity grav, int n, std::uint64_t 
         [&](const Vec<D>& x, const Vec<D>& v, const Vec<D>& g, double R) {
           return c.impact_time(x, v, g, R, 0.0, kNever);
         },
-        gld, [&](std::mt19937_64&) { return f; }, 1, kTmax, 1e-8, 0);
+        gld, [&](std::mt19937_64&) { return f; }, 1, kTmax, kTol, 0);
     total.cases += s.cases;
     total.hits += s.hits;
     total.missed += s.missed;
@@ -224,7 +226,7 @@ void graze_cases(double length, bool inside, Gravity grav, int n, std::uint64_t 
   EXPECT_GT(made, n / 4) << name;
   EXPECT_EQ(total.missed, 0) << name << " " << total.worst_case;
   EXPECT_EQ(total.early, 0) << name << " " << total.worst_case;
-  EXPECT_LE(total.worst, 1e-8) << name << " " << total.worst_case;
+  EXPECT_LE(total.worst, kTol) << name << " " << total.worst_case;
 }
 
 TEST(CylinderImpact, GrazingFlightsTouchOrMissAsTheReferenceSays) {

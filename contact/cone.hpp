@@ -97,6 +97,7 @@ class ConeWall final : public WallShape<D> {
   }
 
   double max_speed() const override { return std::abs(rot_.omega) * std::max(r1_, r2_); }
+  Spin<D> spin() const override { return rot_.spin(); }
   bool moving() const override { return rot_.active(); }
   // The engine passes the earliest event found so far as `limit`: most flights are rejected by
   // out_of_reach without a root search.

@@ -26,6 +26,7 @@ struct PlaneInstant {
   Vec<D> p, n, u, uh;  // position and velocity at t, velocity at t - h/2
   WallPoint<D> at(const Vec<D>& x, double R, double) const { return {(x - p).dot(n) - R, n, u}; }
   Vec<D> surface_velocity(const Vec<D>&, double, double) const { return uh; }
+  Spin<D> spin() const { return Spin<D>::Zero(); }
 };
 
 template <int D>

@@ -153,6 +153,7 @@ class RotatingWall final : public WallShape<D> {
 
   double max_speed() const override { return std::abs(rot_.omega) * rmax_; }
   double sweep_speed() const override { return std::abs(rot_.omega) * rmax_; }
+  Spin<D> spin() const override { return rot_.spin(); }
   bool moving() const override { return rot_.active(); }
   Vec<D> anchor() const override { return rot_.point; }
   // Every position the body takes: the box around the axis of radius rmax (3D: along the axis,

@@ -23,6 +23,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdint>
 #include <limits>
 #include <numbers>
 
@@ -94,6 +95,9 @@ struct PairParams {
   double Gstar = 0.0;  // effective shear modulus
   double Rstar = 0.0;  // effective radius
   double mstar = 0.0;  // effective mass
+  // Rolling inertia (Ai et al. 2011, eq. 17): I_r = 1 / (1/(I_i + m_i R_i^2) + 1/(I_j + m_j R_j^2)),
+  // each body's inertia about its contact point (a wall's term is 0); only the Epsd dashpot uses it.
+  double Ir = 0.0;
 };
 
 inline PairParams pair_params(const SoftMaterial& a, double Ra, double ma, const SoftMaterial& b,
@@ -218,6 +222,11 @@ enum class HertzDamping { Exact, Thornton, Tsuji };
 
 // A contact law between two materials: value type, no virtual calls. Pair-dependent constants
 // (E*, R*, m*) are folded in by soft_contact() below.
+// Rolling resistance of the soft contacts (Ai, Chen, Rotter & Ooi, "Assessment of rolling resistance
+// models in discrete element simulations", Powder Technol. 206, 269 (2011)): none; model A, the
+// constant directional torque (Constant); model C, the elastic-plastic spring-dashpot (Epsd).
+enum class RollingModel : std::uint8_t { None, Constant, Epsd };
+
 struct SoftLaw {
   NormalLaw normal = NormalLaw::Hertz;
   double restitution = 1.0;  // e in (0, 1] (Linear, Hertz)
@@ -234,6 +243,11 @@ struct SoftLaw {
   // Viscoelastic: A [s] in F = K (delta^3/2 + 3/2 A sqrt(delta) delta').
   double dissipation_time = 0.0;
   double friction = 0.0;  // Coulomb mu: |F_t| <= mu |F_n|
+  // Rolling resistance (RollingModel): the coefficient mu_r (the torque is at most mu_r R* F_n) and,
+  // for Epsd, the damping ratio eta_r of the rolling dashpot.
+  RollingModel rolling = RollingModel::None;
+  double rolling_friction = 0.0;
+  double rolling_damping = 0.0;
   // Linear: k_t = kt_ratio k_n (LIGGGHTS: 1, or 2/7 with ktToKnUser; 2/7 makes the tangential
   // oscillation of solid spheres as fast as the normal one; see linear_kt_ratio_for()).
   // Hertz/Viscoelastic: k_t = 8 G* sqrt(R* delta).
@@ -335,6 +349,12 @@ struct SoftContact {
   bool clip = true;    // F_n >= 0
   double zeta = 0.0;   // normal damping ratio (Linear, Hertz)
   double mstar = 0.0;  // for diagnostics
+  // Rolling resistance (rolling_torque below): the model, the full-mobilisation lever mu_r R*, the
+  // rolling stiffness per unit secant normal stiffness 2.25 mu_r^2 R*^2 (k_r = that times k_n, or
+  // times k_n sqrt(delta) for the Hertzian laws) and the dashpot's 2 eta_r sqrt(I_r) (C_r = that
+  // times sqrt(k_r)).
+  RollingModel rolling = RollingModel::None;
+  double roll_lever = 0.0, roll_kr = 0.0, roll_cr = 0.0;
 };
 
 inline SoftContact soft_contact(const SoftLaw& law, const PairParams& p) {
@@ -342,6 +362,14 @@ inline SoftContact soft_contact(const SoftLaw& law, const PairParams& p) {
   c.normal = law.normal;
   c.mu = law.friction;
   c.mstar = p.mstar;
+  if (law.rolling != RollingModel::None && law.rolling_friction > 0.0) {
+    // Ai et al. (2011): M_m = mu_r R* F_n (eq. 13); model C's k_r = 2.25 k_n mu_r^2 R*^2 (eq. 16) and
+    // C_r = eta_r 2 sqrt(I_r k_r) (eqs. 17-18).
+    c.rolling = law.rolling;
+    c.roll_lever = law.rolling_friction * p.Rstar;
+    c.roll_kr = 2.25 * c.roll_lever * c.roll_lever;
+    c.roll_cr = 2.0 * law.rolling_damping * std::sqrt(p.Ir);
+  }
   const double hertz_k = (4.0 / 3.0) * p.Estar * std::sqrt(p.Rstar);  // REFERENCES 6.2
   const double mindlin_k = 8.0 * p.Gstar * std::sqrt(p.Rstar);        // S_t = 8 G* sqrt(R* delta)
   switch (law.normal) {
@@ -512,6 +540,38 @@ struct ContactForce {
 template <int D>
 inline Spin<D> contact_torque(const Vec<D>& n, const Vec<D>& Ft, double arm) {
   return -arm * lever_moment<D>(n, Ft);
+}
+
+// The rolling-resistance torque on i of one contact (on j: minus it), Ai, Chen, Rotter & Ooi,
+// Powder Technol. 206, 269 (2011). wr is the relative angular velocity w_i - w_j (a wall: its own
+// spin), dth the relative rotation over the step, fn the normal force (clipped); only their rolling
+// parts count (3D: the twist along n is removed). M_m = mu_r R* F_n.
+//   Constant (model A, eq. 12): M = -M_m wr/|wr| while wr != 0.
+//   Epsd (model C, eqs. 14-19): the spring torque mk -= k_r dth, capped at |mk| <= M_m; below the
+//   cap a dashpot adds -C_r wr, at full mobilisation it is off (the paper's f = 0).
+// mk is the contact's spring torque (Epsd), kept in the rolling plane.
+template <int D, NormalLaw Law>
+[[gnu::always_inline]] inline Spin<D> rolling_torque(const SoftContact& c, double delta, double fn, const Vec<D>& n,
+                                                     Spin<D> wr, Spin<D> dth, Spin<D>& mk) {
+  if constexpr (D == 3) {
+    wr -= wr.dot(n) * n;
+    dth -= dth.dot(n) * n;
+  }
+  const double Mm = c.roll_lever * (fn > 0.0 ? fn : 0.0);
+  if (c.rolling == RollingModel::Constant) {
+    const double w = wr.norm();
+    return w > 0.0 ? Spin<D>((-Mm / w) * wr) : Spin<D>(Spin<D>::Zero());
+  }
+  const double kn = Law == NormalLaw::Linear ? c.kn : c.kn * std::sqrt(delta > 0.0 ? delta : 0.0);
+  const double kr = c.roll_kr * kn;
+  if constexpr (D == 3) mk -= mk.dot(n) * n;
+  mk -= kr * dth;
+  const double m2 = mk.squaredNorm();
+  if (m2 >= Mm * Mm) {
+    mk *= m2 > 0.0 ? Mm / std::sqrt(m2) : 0.0;
+    return mk;
+  }
+  return mk - (c.roll_cr * std::sqrt(kr)) * wr;
 }
 
 // Force on i for one contact; updates the history. Tangential model (Cundall & Strack,

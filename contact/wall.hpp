@@ -44,6 +44,16 @@ struct AxisRotation {
   double omega = 0.0;
 
   bool active() const { return omega != 0.0; }
+  // The angular velocity (2D: its z component).
+  Spin<D> spin() const {
+    if constexpr (D == 2) {
+      Spin<D> s;
+      s[0] = omega;
+      return s;
+    } else {
+      return omega * axis;
+    }
+  }
   Vec<D> velocity(const Vec<D>& c) const {
     const Vec<D> r = c - point;
     if constexpr (D == 2) {
@@ -121,6 +131,7 @@ struct FeatureView {
   Vec<D> surface_velocity(const Vec<D>& x, double R, double t) const {
     return shape.feature_velocity(x, R, t, feature);
   }
+  Spin<D> spin() const { return shape.spin(); }
 };
 
 // A wall-list entry's wall and feature in one 32-bit slot (the soft engines' springs are keyed by
@@ -145,6 +156,9 @@ class WallShape {
   // The surface's velocity at the contact point of a particle at x (radius R) at time t (the soft
   // path asks it at the half step as well). Zero for a wall at rest.
   virtual Vec<D> surface_velocity(const Vec<D>& x, double R, double t) const { return at(x, R, t).velocity; }
+  // The wall's angular velocity as a rigid body (a turning drum, cone or RotatingWall; 2D: the z
+  // component): the rolling resistance of the soft contacts acts on the grain's spin relative to it.
+  virtual Spin<D> spin() const { return Spin<D>::Zero(); }
 
   // EDM: the earliest dt >= 0 at which a particle with centre x, velocity v, constant acceleration g
   // and radius R, all at the absolute time t0, reaches the surface while the gap closes (an

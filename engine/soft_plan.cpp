@@ -69,11 +69,46 @@ void require_elastic(const Material& m, NormalLaw kind) {
                                             key(m, "poisson"), law_name(kind)));
 }
 
+// The scene's one rolling-resistance model: every material that sets rolling_friction > 0 names the
+// same one (unset: "epsd"); rolling or rolling_damping without rolling_friction, and rolling_damping
+// with the constant-torque model, are refused.
+RollingModel rolling_model_of(const std::vector<Material>& materials) {
+  RollingModel model = RollingModel::None;
+  const Material* first = nullptr;
+  for (const Material& m : materials) {
+    if (!m.rolling_friction) {
+      if (!m.rolling.empty() || m.rolling_damping)
+        throw std::invalid_argument(fmt::format("{}: missing; {} needs the rolling-resistance coefficient mu_r",
+                                                key(m, "rolling_friction"),
+                                                m.rolling.empty() ? key(m, "rolling_damping") : key(m, "rolling")));
+      continue;
+    }
+    const RollingModel mm = m.rolling == "constant" ? RollingModel::Constant : RollingModel::Epsd;
+    if (mm == RollingModel::Constant && m.rolling_damping)
+      throw std::invalid_argument(fmt::format(
+          "{}: set, but rolling = \"constant\" has no dashpot (only rolling = \"epsd\" uses it)",
+          key(m, "rolling_damping")));
+    if (*m.rolling_friction == 0.0) continue;
+    if (first && mm != model)
+      throw std::invalid_argument(fmt::format(
+          "{}: \"{}\" differs from material.{}.rolling = \"{}\"; a run uses one rolling-resistance model",
+          key(m, "rolling"), mm == RollingModel::Constant ? "constant" : "epsd", first->name,
+          model == RollingModel::Constant ? "constant" : "epsd"));
+    model = mm;
+    if (!first) first = &m;
+  }
+  return model;
+}
+
 template <int D>
-SoftLaw make_law(NormalLaw kind, const Material& a, const Material& b) {
+SoftLaw make_law(NormalLaw kind, const Material& a, const Material& b, RollingModel rolling) {
   SoftLaw l;
   l.normal = kind;
   l.friction = mix(a.friction, b.friction, 0.0);
+  // Rolling resistance mixed like mu (Ai et al. 2011 use eta_r = 0.3: the default damping ratio).
+  l.rolling_friction = mix(a.rolling_friction, b.rolling_friction, 0.0);
+  l.rolling = l.rolling_friction > 0.0 ? rolling : RollingModel::None;
+  l.rolling_damping = mix(a.rolling_damping, b.rolling_damping, 0.3);
   const double q = inertia_factor<D>();
   switch (kind) {
     case NormalLaw::Linear: {
@@ -173,11 +208,13 @@ SoftPlan plan_soft(const System<D>& sys) {
     const Material& m = sys.materials[a];
     if (m.young && m.poisson) plan.elastic[a] = {*m.young, *m.poisson};
   }
+  const RollingModel roll = rolling_model_of(sys.materials);
+  plan.inertia_factor = inertia_factor<D>();
   plan.laws.assign(static_cast<std::size_t>(M) * M, SoftLaw{});
   for (int a = 0; a < M; ++a)
     for (int b = 0; b < M; ++b)
       if (used[a] && used[b])
-        plan.laws[a * M + b] = make_law<D>(K, sys.materials[a], sys.materials[b]);
+        plan.laws[a * M + b] = make_law<D>(K, sys.materials[a], sys.materials[b], roll);
   const int W = static_cast<int>(sys.walls.size());
   plan.wall_laws.assign(static_cast<std::size_t>(W) * M, SoftLaw{});
   plan.wall_elastic.assign(W, SoftMaterial::rigid());
@@ -185,10 +222,14 @@ SoftPlan plan_soft(const System<D>& sys) {
     const Material& wm = sys.materials[sys.walls[w].material];
     if (wm.young && wm.poisson && K != NormalLaw::Linear) plan.wall_elastic[w] = {*wm.young, *wm.poisson};
     for (int a = 0; a < M; ++a)
-      if (used[a]) plan.wall_laws[w * M + a] = make_law<D>(K, sys.materials[a], wm);
+      if (used[a]) plan.wall_laws[w * M + a] = make_law<D>(K, sys.materials[a], wm, roll);
   }
   for (const auto& l : plan.laws) plan.friction = plan.friction || l.friction > 0.0;
   for (const auto& l : plan.wall_laws) plan.friction = plan.friction || l.friction > 0.0;
+  for (const auto* laws : {&plan.laws, &plan.wall_laws})
+    for (const auto& l : *laws) plan.rolling = plan.rolling || l.rolling != RollingModel::None;
+  if (plan.rolling) plan.rolling_model = roll;
+  plan.friction = plan.friction || plan.rolling;  // rolling resistance acts on the spins
 
   // Largest expected normal impact speed: twice the fastest particle (head-on), plus the fall
   // through the domain's height along gravity, plus the fastest spin's surface speed.
@@ -280,6 +321,9 @@ SoftContact pair_contact(const SoftPlan& plan, int ma, double Ri, double mi, int
   PairParams p;
   p.Rstar = effective_radius(Ri, Rj);
   p.mstar = effective_mass(mi, mj);
+  // Each body's inertia about the contact point, (q + 1) m R^2 (a fixed grain's is infinite).
+  const double q1 = plan.inertia_factor + 1.0;
+  p.Ir = 1.0 / (1.0 / (q1 * mi * Ri * Ri) + 1.0 / (q1 * mj * Rj * Rj));
   if (law.normal != NormalLaw::Linear) {
     const SoftMaterial& a = plan.elastic[ma];
     const SoftMaterial& b = plan.elastic[mb];
@@ -294,6 +338,7 @@ SoftContact wall_contact(const SoftPlan& plan, int w, int ma, double R, double m
   PairParams p;
   p.Rstar = R;
   p.mstar = m;
+  p.Ir = (plan.inertia_factor + 1.0) * m * R * R;
   if (law.normal != NormalLaw::Linear) {
     const SoftMaterial& a = plan.elastic[ma];
     const SoftMaterial& b = plan.wall_elastic[w];

@@ -28,7 +28,10 @@ struct SoftPlan {
   // wall_laws[w * materials + a]: wall w against a particle of material a; wall_elastic[w].
   std::vector<SoftLaw> wall_laws;
   std::vector<SoftMaterial> wall_elastic;
-  bool friction = false;       // some pair or wall law has mu > 0 (rotation is integrated)
+  bool friction = false;       // some pair or wall law has mu > 0 or rolling resistance (rotation is integrated)
+  bool rolling = false;        // some pair or wall law has rolling resistance
+  RollingModel rolling_model = RollingModel::None;  // the one rolling model of the scene
+  double inertia_factor = 0.4; // I / (m R^2) of the grains (2/5 spheres, 1/2 disks)
   double impact_speed = 0.0;   // largest expected normal impact speed used for the times below
   double contact_time = 0.0;   // shortest contact duration over pairs and walls (inf if none)
   double rayleigh_time = 0.0;  // shortest Rayleigh time over materials with elastic constants (inf if none)

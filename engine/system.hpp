@@ -26,6 +26,11 @@ struct Material {
   std::optional<double> young;     // Pa (TDM contact laws)
   std::optional<double> poisson;   // -
   std::optional<double> friction;  // Coulomb mu (rough spheres, TDM tangential)
+  // Rolling resistance of the soft contacts (contact/soft.hpp rolling_torque): mu_r, the model
+  // ("" unset | "constant" | "epsd") and the Epsd dashpot's damping ratio eta_r.
+  std::optional<double> rolling_friction;
+  std::string rolling;
+  std::optional<double> rolling_damping;
   // Soft-sphere (TDM) contact law, all optional; unset = the engine's default.
   std::string contact;                           // "" (unset) | "linear" | "hertz" | "viscoelastic"
   std::optional<double> stiffness;               // normal stiffness k_n (> 0)

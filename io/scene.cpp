@@ -106,7 +106,7 @@ Restitution read_restitution(const TableReader& m) {
 
 Material read_material(const std::string& name, const TableReader& m) {
   m.allow({"density", "restitution", "young", "poisson", "friction", "contact", "stiffness", "dissipation",
-           "tangential_restitution", "tangential"});
+           "tangential_restitution", "tangential", "rolling_friction", "rolling", "rolling_damping"});
   Material mat;
   mat.name = name;
   mat.density = m.number("density", kPositive);
@@ -119,6 +119,9 @@ Material read_material(const std::string& name, const TableReader& m) {
   mat.dissipation = m.number_opt("dissipation", kNonNegative);
   mat.tangential_restitution = m.number_opt("tangential_restitution", Range{-1.0, 1.0});
   mat.tangential = m.string_opt("tangential", {"walton", "constant", "fem_fit"}).value_or("");
+  mat.rolling_friction = m.number_opt("rolling_friction", kNonNegative);
+  mat.rolling = m.string_opt("rolling", {"constant", "epsd"}).value_or("");
+  mat.rolling_damping = m.number_opt("rolling_damping", Range{0.0, 1.0});
   return mat;
 }
 

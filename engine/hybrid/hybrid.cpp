@@ -191,6 +191,7 @@ class HybridEngine final : public edm::EdmCore<D, CalendarQueue, HybridEngine<D>
     std::uint32_t c;
     std::uint8_t touch;
     Vec<D> xi;
+    Spin<D> mr = Spin<D>::Zero();  // rolling spring torque (Epsd rolling resistance)
   };
 
   void hybrid_setup(const HybridSettings& hs, const SoftPlan* plan) {
@@ -199,6 +200,9 @@ class HybridEngine final : public edm::EdmCore<D, CalendarQueue, HybridEngine<D>
     h_ = hybrid_substep(plan_, hs);
     hdt_ = 0.5 * h_;
     rot_ = plan_.friction;
+    epsd_ = plan_.rolling_model == RollingModel::Epsd;
+    rolling_ = plan_.rolling;
+    pairs_.set_rolling(epsd_);
     const Skins sk = hybrid_skins(sys_.radius, plan_, hs, h_);
     skin_ = sk.capture;
     lskin_ = sk.list;
@@ -524,10 +528,10 @@ class HybridEngine final : public edm::EdmCore<D, CalendarQueue, HybridEngine<D>
     soft::SpringMemory<D>& mem = springs_;
     mem.clear();
     pairs_.for_each([&](const PairEntry& e) {
-      if (e.touch) mem.remember_pair(e.i, e.j, e.xi);
+      if (e.touch) mem.remember_pair(e.i, e.j, e.xi, e.mr);
     });
     for (const auto& e : we_)
-      if (e.touch) mem.remember_wall(ui(e.i), wall_slot(ui(e.w), e.f), e.xi);
+      if (e.touch) mem.remember_wall(ui(e.i), wall_slot(ui(e.w), e.f), e.xi, e.mr);
     mem.sort();
     pairs_.clear();
     we_.clear();
@@ -545,7 +549,7 @@ class HybridEngine final : public edm::EdmCore<D, CalendarQueue, HybridEngine<D>
         const double cut = Ri + hot_[j].R + lskin_;
         if ((xi - hot_[j].x - shift).squaredNorm() >= cut * cut) return;
         PairEntry e{ui(i), ui(j), pair_contact_of(i, j), image_of(shift), 0, Vec<D>::Zero()};
-        if (mem.recall_pair(ui(i), ui(j), e.xi)) e.touch = 1;
+        if (mem.recall_pair(ui(i), ui(j), e.xi, &e.mr)) e.touch = 1;
         pairs_.add(e);
         if (m == kAsleep) watch(j);
       });
@@ -553,7 +557,7 @@ class HybridEngine final : public edm::EdmCore<D, CalendarQueue, HybridEngine<D>
       const std::size_t w0 = we_.size();
       add_walls_only(i, t);
       for (std::size_t k = w0; k < we_.size(); ++k)
-        if (mem.recall_wall(ui(i), wall_slot(ui(we_[k].w), we_[k].f), we_[k].xi)) we_[k].touch = 1;
+        if (mem.recall_wall(ui(i), wall_slot(ui(we_[k].w), we_[k].f), we_[k].xi, &we_[k].mr)) we_[k].touch = 1;
     }
     dirty_ = false;
   }
@@ -851,13 +855,19 @@ class HybridEngine final : public edm::EdmCore<D, CalendarQueue, HybridEngine<D>
     walls_.refresh(t, 0.5 * h_);
     switch (plan_.law) {
       case NormalLaw::Linear:
-        rot_ ? soft_forces_law<NormalLaw::Linear, true>() : soft_forces_law<NormalLaw::Linear, false>();
+        rolling_ ? soft_forces_law<NormalLaw::Linear, true, true>()
+        : rot_   ? soft_forces_law<NormalLaw::Linear, true>()
+                 : soft_forces_law<NormalLaw::Linear, false>();
         break;
       case NormalLaw::Hertz:
-        rot_ ? soft_forces_law<NormalLaw::Hertz, true>() : soft_forces_law<NormalLaw::Hertz, false>();
+        rolling_ ? soft_forces_law<NormalLaw::Hertz, true, true>()
+        : rot_   ? soft_forces_law<NormalLaw::Hertz, true>()
+                 : soft_forces_law<NormalLaw::Hertz, false>();
         break;
       case NormalLaw::Viscoelastic:
-        rot_ ? soft_forces_law<NormalLaw::Viscoelastic, true>() : soft_forces_law<NormalLaw::Viscoelastic, false>();
+        rolling_ ? soft_forces_law<NormalLaw::Viscoelastic, true, true>()
+        : rot_   ? soft_forces_law<NormalLaw::Viscoelastic, true>()
+                 : soft_forces_law<NormalLaw::Viscoelastic, false>();
         break;
     }
   }
@@ -874,7 +884,11 @@ class HybridEngine final : public edm::EdmCore<D, CalendarQueue, HybridEngine<D>
       }
     }
     for (auto& x : pairs_.xi) x.setZero();
-    for (auto& e : we_) e.xi.setZero();
+    for (auto& m : pairs_.mr) m.setZero();
+    for (auto& e : we_) {
+      e.xi.setZero();
+      e.mr.setZero();
+    }
   }
 
   // What the soft path's loop does differently here: rows are the soft particles' (any order),
@@ -933,17 +947,17 @@ class HybridEngine final : public edm::EdmCore<D, CalendarQueue, HybridEngine<D>
     void row_done(std::uint32_t) {}
   };
 
-  template <NormalLaw Law, bool Rot>
+  template <NormalLaw Law, bool Rot, bool Roll = false>
   void soft_forces_law() {
-    any_periodic_ ? soft_forces_law<Law, Rot, true>() : soft_forces_law<Law, Rot, false>();
+    any_periodic_ ? soft_forces_law<Law, Rot, Roll, true>() : soft_forces_law<Law, Rot, Roll, false>();
   }
-  template <NormalLaw Law, bool Rot, bool Periodic>
+  template <NormalLaw Law, bool Rot, bool Roll, bool Periodic>
   [[gnu::flatten]] void soft_forces_law() {
     const double h = h_;
     const bool onset_ok = wall_t_ > 0.0;
     SoftPolicy<Rot, Periodic> pol{ctab_.data(), pairs_.c.data(), touching_.data(), near_.data(), mode_.data(),
                         fz_lost_.data(), skin_, rest_, onset_ok, asleep_ > 0};
-    soft::pair_rows<D, Law, Rot>(soft::Records<D, Hot<D>>{hot_.data()}, soft::bodies_of(vh_, acc_, f_, wh_, alpha_, tq_),
+    soft::pair_rows<D, Law, Rot, Roll>(soft::Records<D, Hot<D>>{hot_.data()}, soft::bodies_of(vh_, acc_, f_, wh_, alpha_, tq_),
                                  pairs_.as_rows(shifts_.data()), 0, static_cast<std::uint32_t>(pairs_.rows()), h, pol);
     std::uint64_t begun = pol.begun;
     const Spin<D> no_spin = Spin<D>::Zero();
@@ -952,9 +966,9 @@ class HybridEngine final : public edm::EdmCore<D, CalendarQueue, HybridEngine<D>
       const int i = e.i;
       bool began = false;
       const soft::WallContact<D> c = walls_.with_wall(e.w, e.f, [&](const auto& shape) {
-        return soft::wall_contact<D, Law, Rot>(shape, wall_t_, h, onset_ok, hot_[i].x, hot_[i].R, vh_[i], acc_[i],
+        return soft::wall_contact<D, Law, Rot, Roll>(shape, wall_t_, h, onset_ok, hot_[i].x, hot_[i].R, vh_[i], acc_[i],
                                                Rot ? wh_[i] : no_spin, Rot ? alpha_[i] : no_spin, ctab_[e.c], e.touch,
-                                               e.xi, began, f_[i], Rot ? tq_[i] : tq_none);
+                                               e.xi, began, f_[i], Rot ? tq_[i] : tq_none, epsd_ ? &e.mr : nullptr);
       });
       begun += began;
       if (c.delta > 0.0) {
@@ -1290,6 +1304,8 @@ class HybridEngine final : public edm::EdmCore<D, CalendarQueue, HybridEngine<D>
   SwitchRule switch_;  // engine/hybrid/switching.hpp
   RestRule rest_;      // engine/hybrid/rest.hpp
   bool rot_ = false;
+  bool rolling_ = false;  // some contact has rolling resistance (the force loops' Roll instantiation)
+  bool epsd_ = false;  // Epsd rolling resistance: the contacts carry rolling spring torques
   int substep_id_ = -1;
   bool clock_ = false;
   double clock_t0_ = 0.0;

@@ -13,6 +13,9 @@
 // grows by h times the half-step contact velocity, and a contact that begins inside the step is
 // weighted by onset_fraction/at_onset. A contact present before the first force evaluation of a
 // run began before it: that evaluation applies no onset weight (the policy's onset() is false).
+// Rolling resistance (a contact's c.rolling): the rotation branch adds rolling_torque
+// (contact/soft.hpp) to i and its opposite to j (a wall: against the wall's own spin); the
+// spring-dashpot model's torques are PairRows::mr and wall_contact's mr (null when not used).
 #pragma once
 
 #include <cmath>
@@ -72,15 +75,36 @@ struct PairRows {
   std::uint8_t* touch = nullptr;
   Vec<D>* xi = nullptr;
   const Vec<D>* shift = nullptr;  // image shifts by index
+  Spin<D>* mr = nullptr;          // rolling spring torques (Epsd rolling resistance; else null)
 
   // Rows 0 .. n - 1 of particles 0 .. n - 1 (owner null) or of owner[r], as CSR arrays.
   static PairRows of(const std::uint32_t* owner, const std::uint32_t* off, const std::uint32_t* nb,
-                     const std::uint8_t* sh, std::uint8_t* touch, Vec<D>* xi, const Vec<D>* shift) {
-    return {owner, off, nb, sh, touch, xi, shift};
+                     const std::uint8_t* sh, std::uint8_t* touch, Vec<D>* xi, const Vec<D>* shift,
+                     Spin<D>* mr = nullptr) {
+    return {owner, off, nb, sh, touch, xi, shift, mr};
   }
 };
 
-// Pair forces of rows [r0, r1); the policy keeps the counters. The policy provides (see the
+// The rolling-resistance torque on i of one contact (rolling_torque) from the half-step spins
+// whi, whj, i's predicted spin wpi and j's angular acceleration alj (a wall: its spin and zero):
+// the relative rotation over the step h (h times the half-step relative spin, weighted by a new
+// contact's onset fraction) and the predicted relative spin. mr: the contact's spring torque
+// (spring-dashpot model; null: none kept), zeroed when the contact is fresh (it begins at this
+// evaluation: a spring left from an earlier contact of the same entry is gone).
+template <int D, NormalLaw Law>
+[[gnu::always_inline]] inline Spin<D> rolling_step(const SoftContact& c, double delta, double fn, const Vec<D>& n,
+                                       const Spin<D>& whi, const Spin<D>& wpi, const Spin<D>& whj,
+                                       const Spin<D>& alj, double h, double onset, bool fresh, Spin<D>* mr) {
+  if (fresh && mr) mr->setZero();
+  Spin<D> dth = h * (whi - whj);
+  if (onset >= 0.0) dth *= onset;
+  Spin<D> none = Spin<D>::Zero();
+  return rolling_torque<D, Law>(c, delta, fn, n, Spin<D>(wpi - whj - (0.5 * h) * alj), dth, mr ? *mr : none);
+}
+
+// Pair forces of rows [r0, r1); the policy keeps the counters. Roll: the scene has rolling
+// resistance (an instantiation of its own, so that the loop of a scene without it carries no trace
+// of it). The policy provides (see the
 // engines for the two):
 //   static constexpr bool kSleepers, kNear, kVirial;
 //   bool onset() const;                       // may a contact begun now get its onset weight?
@@ -93,7 +117,7 @@ struct PairRows {
 //   static constexpr bool kOwners (row r is particle owner[r]; otherwise particle r), kShifts (some
 //   axis is periodic: add the entries' image shifts), kSparseRows (short rows: the owner's force is
 //   added per contact instead of once per row).
-template <int D, NormalLaw Law, bool Rot, class Pos, class Policy>
+template <int D, NormalLaw Law, bool Rot, bool Roll, class Pos, class Policy>
 [[gnu::always_inline]] inline void pair_rows(const Pos P, const Bodies<D>& b, const PairRows<D>& L, std::uint32_t r0,
                                              std::uint32_t r1, double h, Policy& pol) {
   const double hdt = 0.5 * h;
@@ -107,6 +131,7 @@ template <int D, NormalLaw Law, bool Rot, class Pos, class Policy>
   const Vec<D>* const SHIFT = L.shift;
   const std::uint32_t* const OWNER = L.owner;
   Vec<D>* const XI = L.xi;
+  Spin<D>* const MR = L.mr;
   const Spin<D>* const WH = b.w;
   const Spin<D>* const AL = b.alpha;
   Spin<D>* const TQ = b.tq;
@@ -146,7 +171,8 @@ template <int D, NormalLaw Law, bool Rot, class Pos, class Policy>
       const double delta = Rs - rr;
       const Vec<D> vhi = V[i], vpi = V[i] + hdt * AC[i];
       double onset = -1.0;  // first step of this contact: the part of the step spent in contact
-      if (!TOUCH[e]) {
+      const bool fresh = !TOUCH[e];
+      if (fresh) {
         TOUCH[e] = 1;
         pol.began();
         if (onset_ok) onset = onset_fraction(delta, -(vhi - V[j]).dot(n), h);
@@ -213,6 +239,13 @@ template <int D, NormalLaw Law, bool Rot, class Pos, class Policy>
           else ti -= li * m;
           tj = -lj * m;
         }
+        if (Roll && c.rolling != RollingModel::None) {  // rolling resistance: -M on j
+          const Spin<D> M = rolling_step<D, Law>(c, delta, cf.normal, n, whi, wpi, WH[j], AL[j], h, onset, fresh,
+                                                 MR ? &MR[e] : nullptr);
+          if constexpr (Policy::kSparseRows) TQ[i] += M;
+          else ti += M;
+          tj -= M;
+        }
       }
       if constexpr (Policy::kSleepers) {
         if constexpr (Policy::kSparseRows) FF[i] += sleep_i ? Fel : F;
@@ -246,12 +279,12 @@ struct WallContact {
   Vec<D> point = Vec<D>::Zero();   // the wall's surface point of the contact, x - (R - delta) n
 };
 
-template <int D, NormalLaw Law, bool Rot, class Shape = WallShape<D>>
+template <int D, NormalLaw Law, bool Rot, bool Roll, class Shape = WallShape<D>>
 [[gnu::always_inline]] inline WallContact<D> wall_contact(const Shape& W, double t, double h, bool onset_ok,
                                                   const Vec<D>& x, double R, const Vec<D>& vh, const Vec<D>& acc,
                                                   const Spin<D>& wh, const Spin<D>& alpha, SoftContact c,
                                                   std::uint8_t& touch, Vec<D>& xi, bool& began, Vec<D>& f,
-                                                  Spin<D>& tq) {
+                                                  Spin<D>& tq, Spin<D>* mr = nullptr) {
   const double hdt = 0.5 * h;
   const WallPoint<D> wp = W.at(x, R, t);
   const Vec<D>& n = wp.normal;
@@ -269,7 +302,8 @@ template <int D, NormalLaw Law, bool Rot, class Shape = WallShape<D>>
   }
   out.point = x - (R - delta) * n;
   double onset = -1.0;
-  if (!touch) {
+  const bool fresh = !touch;
+  if (fresh) {
     touch = 1;
     began = true;
     // The surface's velocity at the half step (the half-step velocities' frame).
@@ -296,6 +330,11 @@ template <int D, NormalLaw Law, bool Rot, class Shape = WallShape<D>>
     out.force = cf.force;
     f += cf.force;
     tq += contact_torque<D>(n, cf.tangential, li);
+    if (Roll && c.rolling != RollingModel::None) {  // against the wall's own spin
+      const Spin<D> ws = W.spin();
+      tq += rolling_step<D, Law>(c, delta, cf.normal, n, wh, Spin<D>(wh + hdt * alpha), ws, Spin<D>::Zero(), h, onset,
+                                 fresh, mr);
+    }
   }
   return out;
 }

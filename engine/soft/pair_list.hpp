@@ -2,7 +2,8 @@
 // rows are appended when particles join or wake, and entries leave when both ends fall asleep).
 // Row r holds the entries off[r] .. off[r + 1] of particle owner[r]; an entry is the partner, the
 // index of the periodic image shift (x_owner - x_partner + shift is their separation), the index of
-// the contact constants, the touching flag and the tangential spring oriented for the owner.
+// the contact constants, the touching flag and the tangential spring oriented for the owner (with
+// Epsd rolling resistance, set_rolling(true), also the rolling spring torque).
 // as_rows() hands it to the soft path's loop (engine/soft/forces.hpp).
 #pragma once
 
@@ -21,6 +22,7 @@ struct PairEntry {
   std::uint8_t sh;     // image shift index
   std::uint8_t touch;
   Vec<D> xi;           // spring, oriented for i
+  Spin<D> mr = Spin<D>::Zero();  // rolling spring torque on i (Epsd; else unused)
 };
 
 template <int D>
@@ -29,6 +31,10 @@ class PairList {
   std::vector<std::uint32_t> owner, off{0}, nb, c;
   std::vector<std::uint8_t> sh, touch;
   std::vector<Vec<D>> xi;
+  std::vector<Spin<D>> mr;  // only with set_rolling(true)
+
+  // Whether the entries carry rolling spring torques (call on an empty list).
+  void set_rolling(bool on) { rolling_ = on; }
 
   void clear() {
     owner.clear();
@@ -38,6 +44,7 @@ class PairList {
     sh.clear();
     touch.clear();
     xi.clear();
+    mr.clear();
   }
   std::size_t rows() const { return owner.size(); }
   std::size_t size() const { return nb.size(); }
@@ -50,6 +57,7 @@ class PairList {
     sh.push_back(e.sh);
     touch.push_back(e.touch);
     xi.push_back(e.xi);
+    if (rolling_) mr.push_back(e.mr);
   }
   void end_row() {
     if (nb.size() == off.back()) return;
@@ -63,7 +71,9 @@ class PairList {
     end_row();
   }
 
-  PairEntry<D> entry(std::size_t r, std::size_t e) const { return {owner[r], nb[e], c[e], sh[e], touch[e], xi[e]}; }
+  PairEntry<D> entry(std::size_t r, std::size_t e) const {
+    return {owner[r], nb[e], c[e], sh[e], touch[e], xi[e], rolling_ ? mr[e] : Spin<D>(Spin<D>::Zero())};
+  }
 
   // f(entry) for every entry, in row order.
   template <class F>
@@ -86,6 +96,7 @@ class PairList {
         sh[w] = sh[e];
         touch[w] = touch[e];
         xi[w] = xi[e];
+        if (rolling_) mr[w] = mr[e];
         ++w;
       }
       begin = end;
@@ -102,14 +113,17 @@ class PairList {
     sh.resize(w);
     touch.resize(w);
     xi.resize(w);
+    if (rolling_) mr.resize(w);
   }
 
   PairRows<D> as_rows(const Vec<D>* shifts) {
-    return PairRows<D>::of(owner.data(), off.data(), nb.data(), sh.data(), touch.data(), xi.data(), shifts);
+    return PairRows<D>::of(owner.data(), off.data(), nb.data(), sh.data(), touch.data(), xi.data(), shifts,
+                           rolling_ ? mr.data() : nullptr);
   }
 
  private:
   std::uint32_t open_ = 0;
+  bool rolling_ = false;
 };
 
 }  // namespace matep::soft

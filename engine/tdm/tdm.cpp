@@ -52,11 +52,11 @@ class TdmEngine {
     bool moved = false;
   };
   void forces(bool fuse);
-  template <bool Rot, bool Uniform, NormalLaw Law, bool Fuse>
+  template <bool Rot, bool Uniform, NormalLaw Law, bool Fuse, bool Roll>
   struct RangePolicy;
-  template <bool Rot, bool Uniform, NormalLaw Law, bool Fuse>
+  template <bool Rot, bool Uniform, NormalLaw Law, bool Fuse, bool Roll>
   void pair_range(int t);
-  template <bool Rot, bool Uniform, NormalLaw Law>
+  template <bool Rot, bool Uniform, NormalLaw Law, bool Roll>
   void wall_contact_force(std::uint32_t e, Acc& acc, WallLoads<D>& loads);
   template <NormalLaw Law, bool Fuse>
   void force_body(int t);
@@ -95,6 +95,8 @@ class TdmEngine {
   double dt_ = 0.0, hdt_ = 0.0, skin_ = 0.0, half_skin2_ = 0.0;
   int T_ = 1;
   bool rot_ = false, uniform_ = false;
+  bool rolling_ = false;  // some contact has rolling resistance (the force loops' Roll instantiation)
+  bool epsd_ = false;  // Epsd rolling resistance: the contacts carry rolling spring torques (mr_, wl_mr_)
   NormalLaw law_ = NormalLaw::Linear;  // one law for the whole run (plan_soft checks)
   SoftContact cpair_, cfixed_;  // uniform: a pair of moving grains, a moving and a fixed one
   std::vector<SoftContact> cwall_;
@@ -114,11 +116,13 @@ class TdmEngine {
   std::vector<std::uint32_t> off_, nb_;
   std::vector<std::uint8_t> sh_, touch_;
   std::vector<Vec<D>> xi_;
+  std::vector<Spin<D>> mr_;     // rolling spring torques per entry (Epsd rolling resistance; else empty)
   std::array<Vec<D>, D == 3 ? 27 : 9> shifts_;
   // Wall list: (particle, wall) pairs within the skin, in particle order.
   std::vector<std::uint32_t> wl_i_, wl_w_, wl_f_;  // particle, wall, feature (contact/wall.hpp)
   std::vector<std::uint8_t> wl_touch_;
   std::vector<Vec<D>> wl_xi_;
+  std::vector<Spin<D>> wl_mr_;  // the same per wall entry
   std::vector<const WallShape<D>*> shapes_;  // sys_.walls[w].shape
   soft::WallsNow<D> walls_;                  // the same, planes frozen at the step being computed
   double wall_t_ = 0.0;      // the time of the forces being computed
@@ -205,6 +209,8 @@ void TdmEngine<D>::setup() {
   }
   walls_.assign(shapes_);
   rot_ = plan_.friction;
+  epsd_ = plan_.rolling_model == RollingModel::Epsd;
+  rolling_ = plan_.rolling;
   law_ = plan_.law;
 
   // Take over the system's particle state (run_tdm owns its copy of the system).
@@ -285,9 +291,12 @@ void TdmEngine<D>::rebuild() {
   mem.clear();
   for (std::size_t i = 0; i < N_ && !off_.empty(); ++i)
     for (std::uint32_t e = off_[i]; e < off_[i + 1]; ++e)
-      if (touch_[e]) mem.remember_pair(id_[i], id_[nb_[e]], rot_ ? xi_[e] : Vec<D>::Zero());
+      if (touch_[e])
+        mem.remember_pair(id_[i], id_[nb_[e]], rot_ ? xi_[e] : Vec<D>::Zero(), mr_.empty() ? Spin<D>::Zero() : mr_[e]);
   for (std::size_t e = 0; e < wl_i_.size(); ++e)
-    if (wl_touch_[e]) mem.remember_wall(id_[wl_i_[e]], wall_slot(wl_w_[e], wl_f_[e]), rot_ ? wl_xi_[e] : Vec<D>::Zero());
+    if (wl_touch_[e])
+      mem.remember_wall(id_[wl_i_[e]], wall_slot(wl_w_[e], wl_f_[e]), rot_ ? wl_xi_[e] : Vec<D>::Zero(),
+                        wl_mr_.empty() ? Spin<D>::Zero() : wl_mr_[e]);
   mem.sort();
 
   // 2. Wrap periodic axes, check the state, bin into cells.
@@ -403,11 +412,12 @@ void TdmEngine<D>::rebuild() {
   // Recall touching flags and springs.
   touch_.assign(nb_.size(), 0);
   if (rot_) xi_.assign(nb_.size(), Vec<D>::Zero());
+  if (epsd_) mr_.assign(nb_.size(), Spin<D>::Zero());
   Vec<D> spring;
   if (!mem.empty())
     for (std::size_t i = 0; i < N_; ++i)
       for (std::uint32_t e = off_[i]; e < off_[i + 1]; ++e)
-        if (mem.recall_pair(id_[i], id_[nb_[e]], spring)) {
+        if (mem.recall_pair(id_[i], id_[nb_[e]], spring, epsd_ ? &mr_[e] : nullptr)) {
           touch_[e] = 1;
           if (rot_) xi_[e] = spring;
         }
@@ -428,9 +438,10 @@ void TdmEngine<D>::rebuild() {
   }
   wl_touch_.assign(wl_i_.size(), 0);
   if (rot_) wl_xi_.assign(wl_i_.size(), Vec<D>::Zero());
+  if (epsd_) wl_mr_.assign(wl_i_.size(), Spin<D>::Zero());
   if (!mem.empty())
     for (std::size_t e = 0; e < wl_i_.size(); ++e)
-      if (mem.recall_wall(id_[wl_i_[e]], wall_slot(wl_w_[e], wl_f_[e]), spring)) {
+      if (mem.recall_wall(id_[wl_i_[e]], wall_slot(wl_w_[e], wl_f_[e]), spring, epsd_ ? &wl_mr_[e] : nullptr)) {
         wl_touch_[e] = 1;
         if (rot_) wl_xi_[e] = spring;
       }
@@ -455,7 +466,7 @@ void TdmEngine<D>::rebuild() {
 // the loop in range order), overlaps are tracked for the stability check, and each particle's
 // walls follow its pairs and, with Fuse, its integration (its force is then complete).
 template <int D>
-template <bool Rot, bool Uniform, NormalLaw Law, bool Fuse>
+template <bool Rot, bool Uniform, NormalLaw Law, bool Fuse, bool Roll>
 struct TdmEngine<D>::RangePolicy {
   static constexpr bool kSleepers = false, kNear = false, kVirial = false, kOwners = false, kShifts = true,
                         kSparseRows = false;
@@ -500,7 +511,7 @@ struct TdmEngine<D>::RangePolicy {
   }
   void virial(const Vec<D>&, const Vec<D>&) {}
   [[gnu::always_inline]] void row_done(std::uint32_t i) {
-    for (; ew < ew_end && eng.wl_i_[ew] == i; ++ew) eng.wall_contact_force<Rot, Uniform, Law>(ew, acc, loads);
+    for (; ew < ew_end && eng.wl_i_[ew] == i; ++ew) eng.wall_contact_force<Rot, Uniform, Law, Roll>(ew, acc, loads);
     // Every pair entry has j > i (storage is sorted by cell), so i's force is complete here unless
     // a lower thread range still adds to it: integrate it now and never read it again this step.
     // (The engine's arrays are read here, once per row, rather than held through the row's loop.)
@@ -520,27 +531,28 @@ struct TdmEngine<D>::RangePolicy {
 // Pair forces of the particles in thread t's range (the soft path's loop); the touching flag counts
 // contacts begun.
 template <int D>
-template <bool Rot, bool Uniform, NormalLaw Law, bool Fuse>
+template <bool Rot, bool Uniform, NormalLaw Law, bool Fuse, bool Roll>
 [[gnu::flatten]] void TdmEngine<D>::pair_range(int t) {
-  RangePolicy<Rot, Uniform, Law, Fuse> pol(*this, t);
+  RangePolicy<Rot, Uniform, Law, Fuse, Roll> pol(*this, t);
   const auto rows = soft::PairRows<D>::of(nullptr, off_.data(), nb_.data(), sh_.data(), touch_.data(), xi_.data(),
-                                          shifts_.data());
-  soft::pair_rows<D, Law, Rot>(soft::Arrays<D>{x_.data(), R_.data()}, soft::bodies_of(v_, acc_, f_, w_, alpha_, tq_),
+                                          shifts_.data(), epsd_ ? mr_.data() : nullptr);
+  soft::pair_rows<D, Law, Rot, Roll>(soft::Arrays<D>{x_.data(), R_.data()}, soft::bodies_of(v_, acc_, f_, w_, alpha_, tq_),
                                rows, lo_[t], hi_[t], dt_, pol);
   acc_t_[t].moved = pol.moved;
 }
 
 template <int D>
-template <bool Rot, bool Uniform, NormalLaw Law>
+template <bool Rot, bool Uniform, NormalLaw Law, bool Roll>
 inline void TdmEngine<D>::wall_contact_force(std::uint32_t e, Acc& acc, WallLoads<D>& loads) {
   const std::uint32_t i = wl_i_[e];
   const int w = static_cast<int>(wl_w_[e]);
   bool began = false;
   Vec<D> no_spring = Vec<D>::Zero();
   const soft::WallContact<D> c = walls_.with_wall(w, wl_f_[e], [&](const auto& shape) {
-    return soft::wall_contact<D, Law, Rot>(shape, wall_t_, dt_, !initial_, x_[i], R_[i], v_[i], acc_[i], w_[i],
+    return soft::wall_contact<D, Law, Rot, Roll>(shape, wall_t_, dt_, !initial_, x_[i], R_[i], v_[i], acc_[i], w_[i],
                                            alpha_[i], Uniform ? cwall_[w] : wall_coeffs(w, i), wl_touch_[e],
-                                           Rot ? wl_xi_[e] : no_spring, began, f_[i], tq_[i]);
+                                           Rot ? wl_xi_[e] : no_spring, began, f_[i], tq_[i],
+                                           epsd_ ? &wl_mr_[e] : nullptr);
   });
   if (began) ++acc.new_wall;
   const double delta = c.delta;
@@ -553,12 +565,15 @@ template <int D>
 template <NormalLaw Law, bool Fuse>
 void TdmEngine<D>::force_body(int t) {
   spill_[t].clear();
-  if (rot_) {
-    if (uniform_) pair_range<true, true, Law, Fuse>(t);
-    else pair_range<true, false, Law, Fuse>(t);
+  if (rolling_) {  // rolling resistance acts on the spins: rot_ is set
+    if (uniform_) pair_range<true, true, Law, Fuse, true>(t);
+    else pair_range<true, false, Law, Fuse, true>(t);
+  } else if (rot_) {
+    if (uniform_) pair_range<true, true, Law, Fuse, false>(t);
+    else pair_range<true, false, Law, Fuse, false>(t);
   } else {
-    if (uniform_) pair_range<false, true, Law, Fuse>(t);
-    else pair_range<false, false, Law, Fuse>(t);
+    if (uniform_) pair_range<false, true, Law, Fuse, false>(t);
+    else pair_range<false, false, Law, Fuse, false>(t);
   }
 }
 
@@ -779,10 +794,13 @@ RunResult<D> TdmEngine<D>::run() {
     if (status_ == "ok") {
       // Forces at t = 0 give a(0) only: contacts that exist at t = 0 keep their springs unstretched.
       const std::vector<Vec<D>> xi0 = xi_, wxi0 = wl_xi_;
+      const std::vector<Spin<D>> mr0 = mr_, wmr0 = wl_mr_;
       forces(false);
       initial_ = false;
       xi_ = xi0;
       wl_xi_ = wxi0;
+      mr_ = mr0;
+      wl_mr_ = wmr0;
       check_stable();
       // v holds v(t - h/2) between steps.
       for (std::size_t i = 0; i < N_; ++i)

@@ -87,6 +87,29 @@ TEST(TdmInput, VelocityDependentRestitutionWithHertzNamesTheKey) {
   EXPECT_TRUE(has(m, "material.glass.restitution")) << m;
 }
 
+TEST(TdmInput, RollingResistanceKeysAreCheckedAndNamed) {
+  // Accepted: each model with a coefficient (epsd with its damping ratio).
+  EXPECT_EQ(refusal(pair_scene(kHertz + "friction = 0.5\nrolling_friction = 0.1\nrolling = \"constant\"\n")), "");
+  EXPECT_EQ(refusal(pair_scene(kHertz + "rolling_friction = 0.1\nrolling_damping = 0.5\n")), "");
+  std::string m = refusal(pair_scene(kHertz + "rolling_friction = -0.1\n"));
+  EXPECT_TRUE(has(m, "material.glass.rolling_friction") && has(m, "-0.1")) << m;
+  m = refusal(pair_scene(kHertz + "rolling_friction = 0.1\nrolling = \"viscous\"\n"));
+  EXPECT_TRUE(has(m, "material.glass.rolling") && has(m, "viscous")) << m;
+  m = refusal(pair_scene(kHertz + "rolling_friction = 0.1\nrolling_damping = 1.5\n"));
+  EXPECT_TRUE(has(m, "material.glass.rolling_damping") && has(m, "1.5")) << m;
+  m = refusal(pair_scene(kHertz + "rolling = \"epsd\"\n"));
+  EXPECT_TRUE(has(m, "material.glass.rolling_friction") && has(m, "missing")) << m;
+  m = refusal(pair_scene(kHertz + "rolling_friction = 0.1\nrolling = \"constant\"\nrolling_damping = 0.3\n"));
+  EXPECT_TRUE(has(m, "material.glass.rolling_damping") && has(m, "constant")) << m;
+  // Two materials with different models.
+  m = refusal(pair_scene(kHertz + "rolling_friction = 0.1\nrolling = \"constant\"\n") +
+              "[material.steel]\ndensity = 2.0\nrestitution = 0.9\ncontact = \"hertz\"\nyoung = 1.0e7\n"
+              "poisson = 0.3\nrolling_friction = 0.2\nrolling = \"epsd\"\n"
+              "[particles.c]\nmaterial = \"steel\"\nradius = 0.5\ncount = 1\n"
+              "region = {lower = [-1.0, 2.0, -1.0], upper = [1.0, 4.0, 1.0]}\n");
+  EXPECT_TRUE(has(m, "rolling") && has(m, "constant") && has(m, "epsd")) << m;
+}
+
 TEST(TdmInput, TwoContactLawsAreRefused) {
   // Particles of two materials, one Hertz and one linear.
   std::string text = pair_scene(kHertz) +

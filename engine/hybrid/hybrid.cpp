@@ -190,9 +190,19 @@ class HybridEngine final : public edm::EdmCore<D, CalendarQueue, HybridEngine<D>
     std::uint32_t f;  // the wall's feature (contact/wall.hpp; 0 but for a mesh)
     std::uint32_t c;
     std::uint8_t touch;
+    std::uint32_t r = 0;  // its rolling spring torque: wmr_[r] (Epsd rolling resistance; in the padding)
     Vec<D> xi;
-    Spin<D> mr = Spin<D>::Zero();  // rolling spring torque (Epsd rolling resistance)
   };
+  // A new wall entry (with its rolling spring torque in wmr_ when the scene needs one).
+  WallEntry new_wall_entry(int i, int w, std::uint32_t f) {
+    WallEntry e{i, w, f, wall_contact_of(w, i), 0, 0, Vec<D>::Zero()};
+    if (epsd_) {
+      e.r = static_cast<std::uint32_t>(wmr_.size());
+      wmr_.push_back(Spin<D>::Zero());
+    }
+    return e;
+  }
+  Spin<D>* wall_mr(const WallEntry& e) { return epsd_ ? &wmr_[e.r] : nullptr; }
 
   void hybrid_setup(const HybridSettings& hs, const SoftPlan* plan) {
     hset_ = hs;
@@ -531,10 +541,19 @@ class HybridEngine final : public edm::EdmCore<D, CalendarQueue, HybridEngine<D>
       if (e.touch) mem.remember_pair(e.i, e.j, e.xi, e.mr);
     });
     for (const auto& e : we_)
-      if (e.touch) mem.remember_wall(ui(e.i), wall_slot(ui(e.w), e.f), e.xi, e.mr);
+      if (e.touch)
+        mem.remember_wall(ui(e.i), wall_slot(ui(e.w), e.f), e.xi, epsd_ ? wmr_[e.r] : Spin<D>(Spin<D>::Zero()));
     mem.sort();
     pairs_.clear();
     we_.clear();
+    if (epsd_) {  // the sleepers' wall entries keep their torques; the rest is rebuilt below
+      std::vector<Spin<D>> kept;
+      for (auto& e : we_sleep_) {
+        kept.push_back(wmr_[e.r]);
+        e.r = static_cast<std::uint32_t>(kept.size() - 1);
+      }
+      wmr_ = std::move(kept);
+    }
     for (const int j : watched_) watch_flag_[j] = 0;
     watched_.clear();
     soft_grid_build();
@@ -557,7 +576,7 @@ class HybridEngine final : public edm::EdmCore<D, CalendarQueue, HybridEngine<D>
       const std::size_t w0 = we_.size();
       add_walls_only(i, t);
       for (std::size_t k = w0; k < we_.size(); ++k)
-        if (mem.recall_wall(ui(i), wall_slot(ui(we_[k].w), we_[k].f), we_[k].xi, &we_[k].mr)) we_[k].touch = 1;
+        if (mem.recall_wall(ui(i), wall_slot(ui(we_[k].w), we_[k].f), we_[k].xi, wall_mr(we_[k]))) we_[k].touch = 1;
     }
     dirty_ = false;
   }
@@ -677,7 +696,7 @@ class HybridEngine final : public edm::EdmCore<D, CalendarQueue, HybridEngine<D>
   }
   void add_walls_only(int i, double t) {
     walls_in_reach(i, t, [&](int w, std::uint32_t f) {
-      we_.push_back({i, w, f, wall_contact_of(w, i), 0, Vec<D>::Zero()});
+      we_.push_back(new_wall_entry(i, w, f));
     });
   }
   // Calls fn(w, feature) for each wall (feature) within the list skin of i (engine/soft/forces.hpp).
@@ -885,10 +904,8 @@ class HybridEngine final : public edm::EdmCore<D, CalendarQueue, HybridEngine<D>
     }
     for (auto& x : pairs_.xi) x.setZero();
     for (auto& m : pairs_.mr) m.setZero();
-    for (auto& e : we_) {
-      e.xi.setZero();
-      e.mr.setZero();
-    }
+    for (auto& e : we_) e.xi.setZero();
+    for (auto& m : wmr_) m.setZero();
   }
 
   // What the soft path's loop does differently here: rows are the soft particles' (any order),
@@ -968,7 +985,7 @@ class HybridEngine final : public edm::EdmCore<D, CalendarQueue, HybridEngine<D>
       const soft::WallContact<D> c = walls_.with_wall(e.w, e.f, [&](const auto& shape) {
         return soft::wall_contact<D, Law, Rot, Roll>(shape, wall_t_, h, onset_ok, hot_[i].x, hot_[i].R, vh_[i], acc_[i],
                                                Rot ? wh_[i] : no_spin, Rot ? alpha_[i] : no_spin, ctab_[e.c], e.touch,
-                                               e.xi, began, f_[i], Rot ? tq_[i] : tq_none, epsd_ ? &e.mr : nullptr);
+                                               e.xi, began, f_[i], Rot ? tq_[i] : tq_none, wall_mr(e));
       });
       begun += began;
       if (c.delta > 0.0) {
@@ -1264,7 +1281,7 @@ class HybridEngine final : public edm::EdmCore<D, CalendarQueue, HybridEngine<D>
       });
       walls_in_reach(j, t, [&](int w, std::uint32_t f) {
         if (!std::binary_search(moved_w_.begin(), moved_w_.end(), key(ui(j), wall_slot(ui(w), f))))
-          we_.push_back({j, w, f, wall_contact_of(w, j), 0, Vec<D>::Zero()});
+          we_.push_back(new_wall_entry(j, w, f));
       });
     }
   }
@@ -1306,6 +1323,7 @@ class HybridEngine final : public edm::EdmCore<D, CalendarQueue, HybridEngine<D>
   bool rot_ = false;
   bool rolling_ = false;  // some contact has rolling resistance (the force loops' Roll instantiation)
   bool epsd_ = false;  // Epsd rolling resistance: the contacts carry rolling spring torques
+  std::vector<Spin<D>> wmr_;  // the wall entries' rolling spring torques (WallEntry::r), Epsd only
   int substep_id_ = -1;
   bool clock_ = false;
   double clock_t0_ = 0.0;

@@ -20,7 +20,9 @@
 #include <cmath>
 #include <vector>
 
+#include "contact/cylinder.hpp"
 #include "contact/plane.hpp"
+#include "engine/soft/forces.hpp"
 #include "engine/hybrid.hpp"
 #include "engine/tdm.hpp"
 #include "tests/support/shape_physics.hpp"
@@ -185,6 +187,48 @@ void check_pair_torques_cancel(const char* model) {
 TEST(RollingResistance, PairTorquesAreEqualAndOppositeConstant3D) { check_pair_torques_cancel<3>("constant"); }
 TEST(RollingResistance, PairTorquesAreEqualAndOppositeEpsd3D) { check_pair_torques_cancel<3>("epsd"); }
 TEST(RollingResistance, PairTorquesAreEqualAndOppositeEpsd2D) { check_pair_torques_cancel<2>("epsd"); }
+
+// A turning wall's own spin is what the rolling torque resists (WallShape::spin): a frictionless
+// ball pressed against a drum turning at Omega about z feels no rolling torque when it spins with
+// the drum, and the full M_m = mu_r R F_n against the drum's turn when it does not spin (constant
+// torque model, one force evaluation of soft::wall_contact).
+TEST(RollingResistance, ATurningDrumsOwnSpinIsWhatTheTorqueResists) {
+  const double Rc = 0.5, R = kGrainR, Omega = 3.0, mu_r = 0.1, delta = 1e-4;
+  const CylinderWall<3> drum(Vec<3>::Zero(), Vec<3>(0, 0, 1), Rc, 0.0, true, Omega);
+  EXPECT_NEAR((drum.spin() - Spin<3>(0, 0, Omega)).norm(), 0.0, 1e-15);
+  SoftLaw law;
+  law.normal = NormalLaw::Hertz;
+  law.damping = HertzDamping::Tsuji;
+  law.restitution = 0.9;
+  law.rolling = RollingModel::Constant;
+  law.rolling_friction = mu_r;
+  law = law.resolved();
+  PairParams p;
+  p.Estar = test::estar_same();
+  p.Gstar = 1e6;
+  p.Rstar = R;
+  p.mstar = test::grain_mass<3>(R);
+  p.Ir = 1.4 * p.mstar * R * R;
+  const SoftContact c = soft_contact(law, p);
+  // The grain at the drum's wall on +x, overlapping by delta, moving with the wall's surface.
+  const Vec<3> x(Rc - R + delta, 0.0, 0.0);
+  const Vec<3> vwall = drum.surface_velocity(x, R, 0.0);
+  for (const double spin : {Omega, 0.0}) {
+    std::uint8_t touch = 1;
+    Vec<3> xi = Vec<3>::Zero(), f = Vec<3>::Zero();
+    Spin<3> tq = Spin<3>::Zero();
+    bool began = false;
+    const Spin<3> w(0.0, 0.0, spin);
+    const soft::WallContact<3> wc = soft::wall_contact<3, NormalLaw::Hertz, true, true>(
+        drum, 0.0, 1e-6, true, x, R, vwall, Vec<3>::Zero(), w, Spin<3>::Zero(), c, touch, xi, began, f, tq);
+    ASSERT_NEAR(wc.delta, delta, 1e-15);
+    const double Fn = wc.force.norm();  // frictionless: the normal force only
+    std::printf("drum turning at %g rad/s, grain spin %g: rolling torque %.6g (M_m = %.6g)\n", Omega, spin, tq[2],
+                mu_r * R * Fn);
+    if (spin == Omega) EXPECT_NEAR(tq.norm(), 0.0, 1e-15);
+    else EXPECT_NEAR(tq[2], mu_r * R * Fn, 1e-12 * mu_r * R * Fn);  // against the relative spin -Omega
+  }
+}
 
 // The Epsd spring torque is a contact's history: it survives neighbour-list rebuilds (a skin so
 // small that the lists are rebuilt almost every step gives the same run as one so large that they

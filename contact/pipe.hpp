@@ -120,9 +120,8 @@ class PipeWall final : public WallShape<D> {
       }
       segs_.push_back(s);
     }
-    const Vec<D> p = segs_.back().p1, d = segs_.back().d1;
-    end_ = p;
-    dir1_ = d;
+    end_ = segs_.back().p1;
+    dir1_ = segs_.back().d1;
     Vec<D> lo, hi;
     bounds(lo, hi);
     tol_ = 1e-12 * (radius_ + (hi - lo).maxCoeff());

@@ -104,8 +104,7 @@ template <int D, NormalLaw Law>
 
 // Pair forces of rows [r0, r1); the policy keeps the counters. Roll: the scene has rolling
 // resistance (an instantiation of its own, so that the loop of a scene without it carries no trace
-// of it). The policy provides (see the
-// engines for the two):
+// of it). The policy provides (see the engines for the two):
 //   static constexpr bool kSleepers, kNear, kVirial;
 //   bool onset() const;                       // may a contact begun now get its onset weight?
 //   const SoftContact& contact(e, i, j, SoftContact& scratch);

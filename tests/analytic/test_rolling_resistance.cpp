@@ -26,6 +26,7 @@
 #include "engine/hybrid.hpp"
 #include "engine/tdm.hpp"
 #include "tests/support/shape_physics.hpp"
+#include "tests/support/systems.hpp"
 
 namespace matep {
 namespace {
@@ -262,24 +263,13 @@ RunResult<3> spinning_pair(double skin) {
   ts.skin = skin;
   return run_tdm<3>(s, ts, {});
 }
-template <int D>
-double state_difference(const RunResult<D>& a, const RunResult<D>& b) {
-  double d = 0.0, scale = 0.0;
-  for (std::size_t i = 0; i < a.v.size(); ++i) {
-    const double R = a.radius[i];
-    d = std::max({d, (a.v[i] - b.v[i]).norm(), R * (a.w[i] - b.w[i]).norm()});
-    scale = std::max({scale, a.v[i].norm(), R * a.w[i].norm()});
-  }
-  return d / scale;
-}
-
 TEST(RollingResistance, EpsdSpringTorqueSurvivesListRebuilds) {
   const RunResult<3> tiny = held_on_incline<3>(1e-7), big = held_on_incline<3>(0.5);
   ASSERT_EQ(tiny.status, "ok") << tiny.message;
   ASSERT_EQ(big.status, "ok") << big.message;
   EXPECT_GT(tiny.soft.rebuilds, 1000u);
   EXPECT_LE(big.soft.rebuilds, 2u);
-  EXPECT_LT(state_difference(tiny, big), 1e-12);
+  EXPECT_LT(test::relative_state_difference(tiny, big), 1e-12);
   const RunResult<3> ptiny = spinning_pair(1e-6), pbig = spinning_pair(4.0);
   ASSERT_EQ(ptiny.status, "ok") << ptiny.message;
   ASSERT_EQ(pbig.status, "ok") << pbig.message;
@@ -289,9 +279,9 @@ TEST(RollingResistance, EpsdSpringTorqueSurvivesListRebuilds) {
   EXPECT_GT(ptiny.x[0][1], 50.0 / 9.0);  // both crossed the cell boundary
   EXPECT_LT(ptiny.x[1][1], 50.0 / 9.0);
   std::printf("EPSD history through rebuilds: incline %.3g (%llu rebuilds), pair %.3g (%llu rebuilds)\n",
-              state_difference(tiny, big), static_cast<unsigned long long>(tiny.soft.rebuilds),
-              state_difference(ptiny, pbig), static_cast<unsigned long long>(ptiny.soft.rebuilds));
-  EXPECT_LT(state_difference(ptiny, pbig), 1e-12);
+              test::relative_state_difference(tiny, big), static_cast<unsigned long long>(tiny.soft.rebuilds),
+              test::relative_state_difference(ptiny, pbig), static_cast<unsigned long long>(ptiny.soft.rebuilds));
+  EXPECT_LT(test::relative_state_difference(ptiny, pbig), 1e-12);
 }
 
 }  // namespace

@@ -95,14 +95,7 @@ void expect_case(const char* name, const Shape& sh, bool gravity, int n, std::ui
         },
         [&](const VecL<D>& x, long double R) { return gap_ld<D>(c, x, R); },
         [&](std::mt19937_64& r) { return random_flight<D>(r, c, gravity); }, 50, kTmax, kTol, rng());
-    total.cases += s.cases;
-    total.hits += s.hits;
-    total.missed += s.missed;
-    total.early += s.early;
-    if (s.worst > total.worst || s.missed + s.early > 0) {
-      total.worst = std::max(total.worst, s.worst);
-      total.worst_case = s.worst_case;
-    }
+    test::merge(total, s);
   }
   total.print(name);
   EXPECT_EQ(total.missed, 0) << name << " " << total.worst_case;
@@ -148,14 +141,7 @@ void graze_cases(const Shape& sh, bool gravity, int n, std::uint64_t seed, const
           return c.impact_time(x, v, g, R, 0.0, kNever);
         },
         gld, [&](std::mt19937_64&) { return f; }, 1, kTmax, kTol, 0);
-    total.cases += s.cases;
-    total.hits += s.hits;
-    total.missed += s.missed;
-    total.early += s.early;
-    if (s.worst > total.worst || s.missed + s.early > 0) {
-      total.worst = std::max(total.worst, s.worst);
-      total.worst_case = s.worst_case;
-    }
+    test::merge(total, s);
   }
   total.print(name);
   EXPECT_GT(made, n / 5) << name;

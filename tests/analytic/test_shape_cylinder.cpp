@@ -114,15 +114,7 @@ ImpactStats run_case(double length, bool inside, Gravity grav, int n, std::uint6
         },
         [&](const VecL<D>& x, long double R) { return gap_ld<D>(c, x, R); },
         [&](std::mt19937_64& r) { return random_flight<D>(r, c, grav); }, 50, kTmax, kTol, rng());
-    total.cases += s.cases;
-    total.hits += s.hits;
-    total.missed += s.missed;
-    total.early += s.early;
-    if (s.worst > total.worst) {
-      total.worst = s.worst;
-      total.worst_case = s.worst_case;
-    }
-    if (s.missed + s.early > 0 && total.worst_case.empty()) total.worst_case = s.worst_case;
+    test::merge_keep_first(total, s);
   }
   return total;
 }
@@ -212,15 +204,8 @@ void graze_cases(double length, bool inside, Gravity grav, int n, std::uint64_t 
           return c.impact_time(x, v, g, R, 0.0, kNever);
         },
         gld, [&](std::mt19937_64&) { return f; }, 1, kTmax, kTol, 0);
-    total.cases += s.cases;
-    total.hits += s.hits;
-    total.missed += s.missed;
-    total.early += s.early;
     if (s.missed + s.early > 0) std::printf("  %s: %s\n", name, s.worst_case.c_str());
-    if (s.worst > total.worst || (s.missed + s.early > 0)) {
-      total.worst = std::max(total.worst, s.worst);
-      total.worst_case = s.worst_case;
-    }
+    test::merge(total, s);
   }
   total.print(name);
   EXPECT_GT(made, n / 4) << name;

@@ -174,18 +174,6 @@ void expect_limit_consistent(const PipeWall<D>& shape, const Vec<D>& x, const Ve
   }
 }
 
-// As test::merge, but the first failing case is the one kept.
-void merge_keep_first(ImpactStats& total, const ImpactStats& s) {
-  total.cases += s.cases;
-  total.hits += s.hits;
-  total.missed += s.missed;
-  total.early += s.early;
-  if (s.worst > total.worst || (s.missed + s.early > 0 && total.worst_case.empty())) {
-    total.worst = std::max(total.worst, s.worst);
-    total.worst_case = s.worst_case;
-  }
-}
-
 // n flights, a fresh random placement every 50.
 template <int D>
 void expect_case(const char* name, Gravity grav, int n, std::uint64_t seed) {
@@ -194,7 +182,7 @@ void expect_case(const char* name, Gravity grav, int n, std::uint64_t seed) {
   for (int block = 0; block < n / 50; ++block) {
     const UTube<D> p = random_utube<D>(rng);
     const PipeWall<D> c = p.shape();
-    merge_keep_first(total, test::check_impacts<D>(
+    test::merge_keep_first(total, test::check_impacts<D>(
                      [&](const Vec<D>& x, const Vec<D>& v, const Vec<D>& g, double R) {
                        const double t = c.impact_time(x, v, g, R, 0.0, kNever);
                        expect_limit_consistent<D>(c, x, v, g, R, t);
@@ -425,7 +413,7 @@ void graze_cases(Gravity grav, bool bend, int n, std::uint64_t seed, const char*
         },
         gld, [&](std::mt19937_64&) { return f; }, 1, kTmax, kTol, 0);
     if (s.missed + s.early > 0) std::printf("  %s: %s\n", name, s.worst_case.c_str());
-    merge_keep_first(total, s);
+    test::merge_keep_first(total, s);
   }
   total.print(name);
   std::printf("  %s: %d of %d flights made\n", name, made, n);

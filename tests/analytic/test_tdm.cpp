@@ -432,16 +432,6 @@ RunResult<3> incline_sphere(double mu, double skin, double T, double theta_deg) 
   return run_tdm<3>(s, set);
 }
 
-double relative_state_difference(const RunResult<3>& a, const RunResult<3>& b) {
-  double d = 0.0, scale = 0.0;
-  for (std::size_t i = 0; i < a.v.size(); ++i) {
-    const double R = a.radius[i];
-    d = std::max({d, (a.v[i] - b.v[i]).norm(), R * (a.w[i] - b.w[i]).norm()});
-    scale = std::max({scale, a.v[i].norm(), R * a.w[i].norm()});
-  }
-  return d / scale;
-}
-
 }  // namespace
 
 TEST(TdmContactHistory, PairSpringSurvivesRebuildsAndOwnerSwaps) {
@@ -459,8 +449,8 @@ TEST(TdmContactHistory, PairSpringSurvivesRebuildsAndOwnerSwaps) {
   EXPECT_LT(tiny.v[0][1] - tiny.v[1][1], 0.9 * 1.2);
   note("rebuilds_tiny", static_cast<double>(tiny.soft.rebuilds));
   note("rebuilds_big", static_cast<double>(big.soft.rebuilds));
-  note("difference", relative_state_difference(tiny, big));
-  EXPECT_LT(relative_state_difference(tiny, big), 1e-12)
+  note("difference", test::relative_state_difference(tiny, big));
+  EXPECT_LT(test::relative_state_difference(tiny, big), 1e-12)
       << "tiny skin v0 = " << tiny.v[0].transpose() << ", big skin v0 = " << big.v[0].transpose();
 }
 
@@ -475,8 +465,8 @@ TEST(TdmContactHistory, PairSpringSurvivesAPeriodicWrap) {
   EXPECT_GT(tiny.soft.rebuilds, 500u);
   EXPECT_GT(tiny.x[0][0], 5.0);  // sphere 0 was wrapped from x > 0 to x < 10
   EXPECT_LT(tiny.v[0][1] - tiny.v[1][1], 0.9 * 1.2);
-  note("difference", relative_state_difference(tiny, big));
-  EXPECT_LT(relative_state_difference(tiny, big), 1e-12)
+  note("difference", test::relative_state_difference(tiny, big));
+  EXPECT_LT(test::relative_state_difference(tiny, big), 1e-12)
       << "tiny skin v0 = " << tiny.v[0].transpose() << ", big skin v0 = " << big.v[0].transpose();
 }
 
@@ -491,9 +481,9 @@ TEST(TdmContactHistory, RollingDownAnInclineSurvivesRebuilds) {
   EXPECT_GT(tiny.soft.rebuilds, 1000u);
   note("rebuilds_tiny", static_cast<double>(tiny.soft.rebuilds));
   note("rebuilds_big", static_cast<double>(big.soft.rebuilds));
-  note("difference", relative_state_difference(tiny, big));
+  note("difference", test::relative_state_difference(tiny, big));
   note("x_over_expected", (tiny.x[0][0] + 0.8) / (0.5 * 5.0 / 7.0 * 9.81 * std::sin(th * kPi / 180.0) * T * T));
-  EXPECT_LT(relative_state_difference(tiny, big), 1e-12)
+  EXPECT_LT(test::relative_state_difference(tiny, big), 1e-12)
       << "tiny skin v = " << tiny.v[0].transpose() << ", big skin v = " << big.v[0].transpose();
   // Rolling without slipping: a = (5/7) g sin(theta) (solid sphere, I = 2/5 m R^2), and the
   // spin follows, w_y = v_x/R.

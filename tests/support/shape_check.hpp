@@ -71,6 +71,18 @@ inline void merge(ImpactStats& total, const ImpactStats& s) {
   }
 }
 
+// As merge, but the first failing case is the one kept.
+inline void merge_keep_first(ImpactStats& total, const ImpactStats& s) {
+  total.cases += s.cases;
+  total.hits += s.hits;
+  total.missed += s.missed;
+  total.early += s.early;
+  if (s.worst > total.worst || (s.missed + s.early > 0 && total.worst_case.empty())) {
+    total.worst = std::max(total.worst, s.worst);
+    total.worst_case = s.worst_case;
+  }
+}
+
 // Runs n flights from gen(rng) (which must return a start with a positive gap) through
 // impact_time(x, v, g, R) and the reference earliest_closing_root on gap_ld(x(t), R) up to t_max.
 // A reference root within t_max must be matched within rel_tol (relative, absolute below `floor`);

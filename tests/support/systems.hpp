@@ -1,15 +1,31 @@
 // Test helpers: ready-made systems built without a scene file.
 #pragma once
 
+#include <algorithm>
 #include <cmath>
 #include <numbers>
 #include <random>
 #include <string>
 
 #include "engine/edm.hpp"
+#include "engine/result.hpp"
 #include "engine/system.hpp"
 
 namespace matep::test {
+
+// The largest difference of two runs' final velocities and surface spin speeds R w, relative to
+// the largest of them in a (two runs of one system that should agree: e.g. with a list rebuilt
+// every step and built once).
+template <int D>
+double relative_state_difference(const RunResult<D>& a, const RunResult<D>& b) {
+  double d = 0.0, scale = 0.0;
+  for (std::size_t i = 0; i < a.v.size(); ++i) {
+    const double R = a.radius[i];
+    d = std::max({d, (a.v[i] - b.v[i]).norm(), R * (a.w[i] - b.w[i]).norm()});
+    scale = std::max({scale, a.v[i].norm(), R * a.w[i].norm()});
+  }
+  return d / scale;
+}
 
 // A material with the linear spring-dashpot law: stiffness k [N/m], constant restitution e.
 inline Material linear_material(const std::string& name, double density, double k, double e) {

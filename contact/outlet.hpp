@@ -13,11 +13,14 @@
 // of the first piece whose midpoint is inside.
 #pragma once
 
+#include <fmt/format.h>
+
 #include <algorithm>
 #include <array>
 #include <cmath>
 #include <limits>
 #include <stdexcept>
+#include <string>
 
 #include "contact/poly.hpp"
 #include "contact/shape_features.hpp"
@@ -69,6 +72,22 @@ class OutletRegion {
 
   Kind kind() const { return kind_; }
 
+  std::string describe() const {
+    switch (kind_) {
+      case Kind::HalfSpace:
+        return fmt::format("grains removed beyond the plane through ({}) with normal ({})", fmt::join(p_, ", "),
+                           fmt::join(a_, ", "));
+      case Kind::Box:
+        return fmt::format("grains removed inside the box ({}) .. ({})", fmt::join(p_, ", "), fmt::join(q_, ", "));
+      case Kind::Cylinder:
+        if constexpr (D == 3)
+          return fmt::format("grains removed inside the cylinder from ({}) along ({}), radius {}, length {}",
+                             fmt::join(p_, ", "), fmt::join(a_, ", "), r_, L_);
+        return fmt::format("grains removed inside the disk about ({}), radius {}", fmt::join(p_, ", "), r_);
+    }
+    return "";
+  }
+
   // Whether the point x lies inside (every constraint < 0).
   bool inside(const Vec<D>& x) const {
     switch (kind_) {
@@ -87,6 +106,34 @@ class OutletRegion {
         }
         return r.squaredNorm() < r_ * r_;
       }
+    }
+    return false;
+  }
+
+  // Whether the region meets the open box (lo, hi): a grain inside the box can reach it (for a
+  // cylinder: its bounding box meets the box, a conservative answer).
+  bool meets_box(const Vec<D>& lo, const Vec<D>& hi) const {
+    switch (kind_) {
+      case Kind::HalfSpace: {
+        double m = 0.0;  // the least (x - p).n over the box
+        for (int k = 0; k < D; ++k) m += a_[k] * ((a_[k] > 0.0 ? lo[k] : hi[k]) - p_[k]);
+        return m < 0.0;
+      }
+      case Kind::Box:
+        for (int k = 0; k < D; ++k)
+          if (!(p_[k] < hi[k] && q_[k] > lo[k])) return false;
+        return true;
+      case Kind::Cylinder:
+        for (int k = 0; k < D; ++k) {
+          double a = p_[k] - r_, b = p_[k] + r_;
+          if constexpr (D == 3) {
+            const double e = r_ * std::sqrt(std::max(0.0, 1.0 - a_[k] * a_[k]));
+            a = std::min(p_[k], p_[k] + L_ * a_[k]) - e;
+            b = std::max(p_[k], p_[k] + L_ * a_[k]) + e;
+          }
+          if (!(a < hi[k] && b > lo[k])) return false;
+        }
+        return true;
     }
     return false;
   }
@@ -121,16 +168,19 @@ class OutletRegion {
         }
         break;
     }
-    // The times where some constraint changes sign, in (0, limit).
-    const double hi = std::min(limit, kPolyHorizon);
+    // The times where some constraint changes sign, in (0, limit); beyond the largest root bound
+    // (contact/poly.hpp) no constraint changes sign any more, so the search stops there (a search
+    // over (0, 1e30) would lose a quartic's roots to round-off).
+    double bound = 0.0;
+    for (int k = 0; k < m; ++k) {
+      c[k].trim();
+      if (c[k].n > 0) bound = std::max(bound, root_bound(c[k]));
+    }
+    const double hi = std::min(limit, std::max(bound * 1.0000001, 1.0));
     if (!(hi > 0.0)) return inf;
     double cuts[(2 * D + 1) * Poly::kMax + 2];
     int n = 0;
-    for (int k = 0; k < m; ++k) {
-      Poly p = c[k];
-      p.trim();
-      n += poly_detail::sign_changes(p, 0.0, hi, cuts + n);
-    }
+    for (int k = 0; k < m; ++k) n += poly_detail::sign_changes(c[k], 0.0, hi, cuts + n);
     std::sort(cuts, cuts + n);
     double a = 0.0;
     for (int i = 0; i <= n; ++i) {

@@ -15,6 +15,19 @@ enum class EventKind : std::uint8_t {
   CellCrossing = 3,
   ToSoft = 4,  // hybrid: particle switched to TDM
   ToHard = 5,  // hybrid: particle switched back to EDM
+  Outflow = 6, // a grain left through an outlet (i: its id, j: the outlet's index)
+};
+
+// A grain taken out of the run by an outlet (one row of outflow.csv): its state as it entered.
+// TDM and the hybrid's soft grains give the velocity of their last half step.
+template <int D>
+struct OutflowRecord {
+  double time = 0.0;
+  std::uint32_t id = 0;
+  std::uint32_t outlet = 0;  // index into System::outlets
+  double mass = 0.0;
+  Vec<D> x = Vec<D>::Zero(), v = Vec<D>::Zero();
+  Spin<D> w = Spin<D>::Zero();
 };
 
 // One resolved collision, with the state just before and just after it. For a wall collision
@@ -44,16 +57,22 @@ struct ThermoSample {
   std::uint64_t collisions = 0;   // cumulative pair + wall collisions (soft: contacts begun)
   double pressure = 0.0;          // kinetic + collisional virial over the last interval
   std::uint64_t soft = 0;         // particles in the soft set (awake or asleep): EDM 0, TDM all
+  std::uint64_t grains = 0;       // grains present
+  std::uint64_t grains_out = 0;   // grains removed by outlets so far
+  double mass_out = 0.0;          // their mass
   // Per wall, the mean force of the grains on it and its torque about the wall's anchor over the
   // interval since the previous sample (engine/wall_loads.hpp): six numbers per wall, in wall order
   // (empty at t = 0).
   std::vector<double> wall_loads;
 };
 
-// The state of every particle at one time, in particle-id order (a snapshot).
+// The state of every particle at one time, in particle-id order (a snapshot). Once grains have
+// left through an outlet the rows are those present, in increasing id, and id gives each row's
+// particle id (empty: row k is particle k).
 template <int D>
 struct Snapshot {
   double time = 0.0;
+  std::vector<std::uint32_t> id;
   std::vector<Vec<D>> x, v;
   std::vector<Spin<D>> w;  // empty when the system has no spins
   std::vector<double> radius;
@@ -70,8 +89,36 @@ class Observer {
   virtual void on_sample(const ThermoSample&) {}
   virtual bool wants_snapshots() const { return false; }
   virtual void on_snapshot(const Snapshot<D>&) {}
+  virtual void on_outflow(const OutflowRecord<D>&) {}
   // Called every few thousand events with the simulated time and the events so far.
   virtual void on_progress(double /*time*/, std::uint64_t /*events*/) {}
 };
+
+// Keeps the rows of a snapshot whose particle is present (gone[k] == 0 for particle k, in id
+// order; gone empty: all present), filling its ids.
+template <int D>
+void keep_present(Snapshot<D>& s, const std::vector<std::uint8_t>& gone) {
+  if (gone.empty()) return;
+  const std::size_t n = s.x.size();
+  std::size_t m = 0;
+  s.id.clear();
+  for (std::size_t k = 0; k < n; ++k) {
+    if (gone[k]) continue;
+    s.id.push_back(static_cast<std::uint32_t>(k));
+    s.x[m] = s.x[k];
+    s.v[m] = s.v[k];
+    if (!s.w.empty()) s.w[m] = s.w[k];
+    s.radius[m] = s.radius[k];
+    if (!s.mode.empty()) s.mode[m] = s.mode[k];
+    if (!s.cluster.empty()) s.cluster[m] = s.cluster[k];
+    ++m;
+  }
+  s.x.resize(m);
+  s.v.resize(m);
+  if (!s.w.empty()) s.w.resize(m);
+  s.radius.resize(m);
+  if (!s.mode.empty()) s.mode.resize(m);
+  if (!s.cluster.empty()) s.cluster.resize(m);
+}
 
 }  // namespace matep

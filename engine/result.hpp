@@ -89,12 +89,42 @@ struct RunResult {
   double wall_seconds = 0.0;
   double max_overlap = 0.0;           // EDM: largest overlap at the end; TDM: largest seen during the run
   double max_overlap_relative = 0.0;  // the same divided by the pair's contact distance
-  std::vector<Vec<D>> x, v;           // final state
+  // The final state: one row per grain present, in increasing id; id gives each row's particle id
+  // once grains have left through an outlet (empty: row k is particle k).
+  std::vector<std::uint32_t> id;
+  std::vector<Vec<D>> x, v;
   std::vector<double> radius;
   std::vector<Spin<D>> w;             // empty when the system had no spins (all zero)
   SoftStats soft;                     // TDM and hybrid runs
   HybridStats hybrid;                 // hybrid runs
   std::vector<std::uint8_t> mode;     // hybrid: final mode per particle (0 hard, 1 soft, 3 asleep, 4 fixed)
+  std::uint64_t grains_out = 0;       // grains removed by outlets
+  double mass_out = 0.0;              // their mass
 };
+
+// Keeps the final-state rows of the grains present (gone[k] == 0 for particle k, in id order;
+// gone empty: all present), filling res.id.
+template <int D>
+void keep_present(RunResult<D>& r, const std::vector<std::uint8_t>& gone) {
+  if (gone.empty()) return;
+  const std::size_t n = r.x.size();
+  std::size_t m = 0;
+  r.id.clear();
+  for (std::size_t k = 0; k < n; ++k) {
+    if (gone[k]) continue;
+    r.id.push_back(static_cast<std::uint32_t>(k));
+    r.x[m] = r.x[k];
+    r.v[m] = r.v[k];
+    if (!r.w.empty()) r.w[m] = r.w[k];
+    r.radius[m] = r.radius[k];
+    if (!r.mode.empty()) r.mode[m] = r.mode[k];
+    ++m;
+  }
+  r.x.resize(m);
+  r.v.resize(m);
+  if (!r.w.empty()) r.w.resize(m);
+  r.radius.resize(m);
+  if (!r.mode.empty()) r.mode.resize(m);
+}
 
 }  // namespace matep

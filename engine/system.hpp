@@ -12,6 +12,7 @@
 #include <string>
 #include <vector>
 
+#include "contact/outlet.hpp"
 #include "contact/plane.hpp"
 #include "contact/restitution.hpp"
 #include "contact/vec.hpp"
@@ -58,6 +59,17 @@ Wall<D> plane_wall(std::string name, const Vec<D>& point, const Vec<D>& normal, 
   return {std::move(name), material, std::make_shared<PlaneWall<D>>(point, normal, amplitude, frequency)};
 }
 
+// An outlet ([outlet.NAME]): a region where a grain whose centre enters is taken out of the run
+// (contact/outlet.hpp). face >= 0 marks an open face of the domain, 2 axis + (1 for the upper face):
+// its region is the half space beyond that face, and a grain whose centre crosses it is removed, not
+// "escaped".
+template <int D>
+struct Outlet {
+  std::string name;
+  OutletRegion<D> region;
+  int face = -1;
+};
+
 template <int D>
 struct System {
   Vec<D> lower = Vec<D>::Zero();
@@ -66,6 +78,7 @@ struct System {
   Vec<D> gravity = Vec<D>::Zero();
   std::vector<Material> materials;
   std::vector<Wall<D>> walls;
+  std::vector<Outlet<D>> outlets;  // empty: a closed system (a grain leaving the domain stops the run)
 
   // Initial particle state, indexed by particle id.
   std::vector<Vec<D>> x;

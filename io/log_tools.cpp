@@ -34,6 +34,7 @@ const char* event_kind_name(std::uint8_t kind) {
     case 3: return "cell";
     case 4: return "soft";
     case 5: return "hard";
+    case 6: return "outflow";
     default: return "unknown";
   }
 }
@@ -43,8 +44,9 @@ std::uint8_t parse_event_kind(std::string_view word) {
   if (word == "wall") return static_cast<std::uint8_t>(EventKind::WallCollision);
   if (word == "soft") return static_cast<std::uint8_t>(EventKind::ToSoft);
   if (word == "hard") return static_cast<std::uint8_t>(EventKind::ToHard);
+  if (word == "outflow") return static_cast<std::uint8_t>(EventKind::Outflow);
   throw std::invalid_argument(
-      fmt::format("--kind: unknown event kind '{}' (expected pair, wall, soft or hard)", word));
+      fmt::format("--kind: unknown event kind '{}' (expected pair, wall, soft, hard or outflow)", word));
 }
 
 std::vector<std::uint32_t> parse_id_list(std::string_view list) {
@@ -112,7 +114,7 @@ EventRecord read_record_at(const std::string& path, std::uint64_t index) {
       std::fread(buf, 1, kEventRecordSize, f.get()) != kEventRecordSize)
     throw IoError(fmt::format("{}: cannot read the event record at byte offset {}", path, off));
   EventRecord r = decode_event_record(buf);
-  if (r.kind < 1 || r.kind > 5)
+  if (r.kind < 1 || r.kind > 6)
     throw IoError(fmt::format("{}: corrupt event record at byte offset {} (kind {})", path, off,
                               static_cast<int>(r.kind)));
   return r;
@@ -301,7 +303,9 @@ std::string format_log_stats(const LogStats& s) {
   fmt::format_to(o, "{:<22}{:>14}\n", "wall collisions", s.by_kind[2]);
   if (s.by_kind[3]) fmt::format_to(o, "{:<22}{:>14}\n", "cell crossings", s.by_kind[3]);
   fmt::format_to(o, "{:<22}{:>14}\n", "switches to soft", s.by_kind[4]);
-  fmt::format_to(o, "{:<22}{:>14}\n\n", "switches to hard", s.by_kind[5]);
+  fmt::format_to(o, "{:<22}{:>14}\n", "switches to hard", s.by_kind[5]);
+  if (s.by_kind[6]) fmt::format_to(o, "{:<22}{:>14}\n", "grains out (outflow)", s.by_kind[6]);
+  fmt::format_to(o, "\n");
 
   fmt::format_to(o, "collision rate (pair + wall collisions per unit time), {} bins\n", s.bins.size());
   fmt::format_to(o, "{:>16} {:>16} {:>12} {:>12} {:>14}\n", "t from", "t to", "pair", "wall", "rate");

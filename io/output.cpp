@@ -148,7 +148,7 @@ bool EventLogReader::next(EventRecord& rec) {
     throw IoError(fmt::format("{}: truncated event record at byte offset {} ({} of {} bytes)", path_,
                               offset_, got, kEventRecordSize));
   rec = decode_event_record(buf);
-  if (rec.kind < 1 || rec.kind > 5)
+  if (rec.kind < 1 || rec.kind > 6)
     throw IoError(fmt::format("{}: corrupt event record at byte offset {} (kind {})", path_, offset_,
                               static_cast<int>(rec.kind)));
   offset_ += kEventRecordSize;
@@ -210,17 +210,64 @@ void EventLogWriter<D>::on_collision(const CollisionRecord<D>& c) {
     throw IoError(fmt::format("{}: write failed: {}", path_, std::strerror(errno)));
 }
 
+// A grain leaving through an outlet: kind 6, i its id, j the outlet's index, mi its mass, its
+// velocity and spin as vi_before = vi_after and wi_before = wi_after.
+template <int D>
+void EventLogWriter<D>::on_outflow(const OutflowRecord<D>& o) {
+  CollisionRecord<D> c;
+  c.time = o.time;
+  c.kind = EventKind::Outflow;
+  c.i = o.id;
+  c.j = o.outlet;
+  c.mi = o.mass;
+  c.e = 0.0;
+  c.vi_before = c.vi_after = o.v;
+  c.wi_before = c.wi_after = o.w;
+  on_collision(c);
+}
+
 template class EventLogWriter<2>;
 template class EventLogWriter<3>;
 
+// ---- outflow.csv ------------------------------------------------------------------------------
+
+template <int D>
+OutflowCsvWriter<D>::OutflowCsvWriter(const std::string& path, const std::vector<std::string>& outlets)
+    : path_(path), outlets_(outlets) {
+  f_ = open_or_throw(path, "w");
+  std::fputs(D == 3 ? "time,id,outlet,mass,x,y,z,vx,vy,vz\n" : "time,id,outlet,mass,x,y,vx,vy\n", f_);
+}
+
+template <int D>
+OutflowCsvWriter<D>::~OutflowCsvWriter() {
+  if (f_) std::fclose(f_);
+}
+
+template <int D>
+void OutflowCsvWriter<D>::on_outflow(const OutflowRecord<D>& r) {
+  fmt::print(f_, "{:.17g},{},{},{:.17g}", r.time, r.id, outlets_.at(r.outlet), r.mass);
+  for (int k = 0; k < D; ++k) fmt::print(f_, ",{:.17g}", r.x[k]);
+  for (int k = 0; k < D; ++k) fmt::print(f_, ",{:.17g}", r.v[k]);
+  std::fputs("\n", f_);
+}
+
+template <int D>
+void OutflowCsvWriter<D>::on_sample(const ThermoSample&) {
+  std::fflush(f_);  // complete up to the last thermo row if a run stops early
+}
+
+template class OutflowCsvWriter<2>;
+template class OutflowCsvWriter<3>;
+
 // ---- thermo.csv -------------------------------------------------------------------------------
 
-ThermoCsvWriter::ThermoCsvWriter(const std::string& path, const std::vector<std::string>& walls, int dim)
-    : path_(path), walls_(walls.size()), dim_(dim) {
+ThermoCsvWriter::ThermoCsvWriter(const std::string& path, const std::vector<std::string>& walls, int dim, bool flows)
+    : path_(path), walls_(walls.size()), dim_(dim), flows_(flows) {
   f_ = open_or_throw(path, "w");
   std::fputs("time,kinetic_energy,rotational_energy,potential_energy,temperature,collisions,pressure,elastic_energy,"
              "soft",
              f_);
+  if (flows_) std::fputs(",grains,grains_out,mass_out", f_);
   for (const auto& w : walls) {
     if (dim_ == 2) fmt::print(f_, ",{0}_fx,{0}_fy,{0}_tz", w);
     else fmt::print(f_, ",{0}_fx,{0}_fy,{0}_fz,{0}_tx,{0}_ty,{0}_tz", w);
@@ -236,6 +283,7 @@ void ThermoCsvWriter::on_sample(const ThermoSample& s) {
   fmt::print(f_, "{:.17g},{:.17g},{:.17g},{:.17g},{:.17g},{},{:.17g},{:.17g},{}", s.time, s.kinetic_energy,
              s.rotational_energy, s.potential_energy, s.temperature, s.collisions, s.pressure,
              s.elastic_energy, s.soft);
+  if (flows_) fmt::print(f_, ",{},{},{:.17g}", s.grains, s.grains_out, s.mass_out);
   // Six numbers per wall in the sample (2D: force x, y and torque z are the meaningful ones); none
   // at t = 0 (no interval yet): zeros.
   for (std::size_t w = 0; w < walls_; ++w) {
@@ -320,7 +368,7 @@ void VtkSnapshotWriter<D>::on_snapshot(const Snapshot<D>& snap) {
     else spin3<D>(snap.w[i], c);
   });
   fmt::print(f, "        <DataArray type=\"Int32\" Name=\"id\" format=\"ascii\">\n");
-  for (std::size_t i = 0; i < n; ++i) fmt::print(f, "{}\n", i);
+  for (std::size_t i = 0; i < n; ++i) fmt::print(f, "{}\n", snap.id.empty() ? i : std::size_t{snap.id[i]});
   fmt::print(f, "        </DataArray>\n");
   // Mode 0 hard, 1 soft, 3 asleep and the soft cluster id (-1: none). A snapshot without them
   // comes from a run that does not set them (0 and -1 are written).
@@ -370,10 +418,11 @@ void write_final_state(const std::string& path, const RunResult<D>& res) {
     const Spin<D> w = res.w.empty() ? Spin<D>::Zero() : res.w[i];
     if constexpr (D == 3)
       fmt::print(f, "{},{:.17g},{:.17g},{:.17g},{:.17g},{:.17g},{:.17g},{:.17g},{:.17g},{:.17g},{:.17g}\n",
-                 i, x[0], x[1], x[2], v[0], v[1], v[2], w[0], w[1], w[2], radius[i]);
+                 res.id.empty() ? i : std::size_t{res.id[i]}, x[0], x[1], x[2], v[0], v[1], v[2], w[0], w[1], w[2],
+                 radius[i]);
     else
-      fmt::print(f, "{},{:.17g},{:.17g},{:.17g},{:.17g},{:.17g},{:.17g}\n", i, x[0], x[1], v[0], v[1],
-                 w[0], radius[i]);
+      fmt::print(f, "{},{:.17g},{:.17g},{:.17g},{:.17g},{:.17g},{:.17g}\n", res.id.empty() ? i : std::size_t{res.id[i]},
+                 x[0], x[1], v[0], v[1], w[0], radius[i]);
   }
   std::fclose(f);
 }
@@ -429,6 +478,9 @@ void write_summary(const std::string& path, const SummaryInfo& info, const RunRe
   fmt::print(f, "  \"collisions_per_second\": {},\n", json_number(r.counts.collisions() / wall));
   fmt::print(f, "  \"max_overlap\": {},\n", json_number(r.max_overlap));
   fmt::print(f, "  \"max_overlap_relative\": {},\n", json_number(r.max_overlap_relative));
+  fmt::print(f, "  \"grains_at_end\": {},\n", r.x.size());
+  if (r.grains_out > 0 || info.flows)
+    fmt::print(f, "  \"outflow\": {{\"grains\": {}, \"mass\": {}}},\n", r.grains_out, json_number(r.mass_out));
   if (r.method != Method::Edm) {
     const SoftStats& s = r.soft;
     fmt::print(f, "  \"soft\": {{\"steps\": {}, \"dt\": {}, \"default_dt\": {}, \"max_stable_dt\": {}, "

@@ -78,6 +78,7 @@ class EventLogWriter final : public Observer<D> {
   ~EventLogWriter() override;
   bool wants_collisions() const override { return true; }
   void on_collision(const CollisionRecord<D>& rec) override;
+  void on_outflow(const OutflowRecord<D>& rec) override;
   void close();
 
  private:
@@ -91,7 +92,10 @@ class ThermoCsvWriter final : public Observer<2>, public Observer<3> {
   // With wall names, each row also gives every wall's mean force and torque over the interval
   // (ThermoSample::wall_loads): columns NAME_fx, NAME_fy[, NAME_fz], then NAME_tz (2D) or NAME_tx,
   // NAME_ty, NAME_tz (3D).
-  explicit ThermoCsvWriter(const std::string& path, const std::vector<std::string>& walls = {}, int dim = 3);
+  // With flows (a scene with outlets), each row also gives the grains present, the grains removed
+  // so far and their mass: columns grains, grains_out, mass_out.
+  explicit ThermoCsvWriter(const std::string& path, const std::vector<std::string>& walls = {}, int dim = 3,
+                           bool flows = false);
   ~ThermoCsvWriter() override;
   void on_sample(const ThermoSample& s) override;
 
@@ -99,6 +103,23 @@ class ThermoCsvWriter final : public Observer<2>, public Observer<3> {
   std::string path_;
   std::size_t walls_ = 0;
   int dim_ = 3;
+  bool flows_ = false;
+  std::FILE* f_ = nullptr;
+};
+
+// outflow.csv: one row per grain taken out by an outlet, in the order they left: time, id, the
+// outlet's name, mass, position and velocity as it entered the outlet.
+template <int D>
+class OutflowCsvWriter final : public Observer<D> {
+ public:
+  OutflowCsvWriter(const std::string& path, const std::vector<std::string>& outlets);
+  ~OutflowCsvWriter() override;
+  void on_outflow(const OutflowRecord<D>& r) override;
+  void on_sample(const ThermoSample&) override;
+
+ private:
+  std::string path_;
+  std::vector<std::string> outlets_;
   std::FILE* f_ = nullptr;
 };
 
@@ -139,6 +160,7 @@ struct SummaryInfo {
   std::uint64_t particles = 0;
   std::uint64_t seed = 0;
   double end_time = 0.0;
+  bool flows = false;  // the scene has outlets
 };
 
 template <int D>

@@ -138,9 +138,17 @@ RunOutcome run_system(const Scene& scene, const System<D>& sys, const std::strin
   std::vector<std::string> wall_names;
   if (scene.output.wall_loads)
     for (const auto& w : sys.walls) wall_names.push_back(w.name);
-  ThermoCsvWriter thermo(dir + "/thermo.csv", wall_names, D);
+  const bool flows = !sys.outlets.empty();
+  ThermoCsvWriter thermo(dir + "/thermo.csv", wall_names, D, flows);
   std::unique_ptr<EventLogWriter<D>> log;
   std::vector<Observer<D>*> observers{static_cast<Observer<D>*>(&thermo)};
+  std::unique_ptr<OutflowCsvWriter<D>> outflow;
+  if (flows) {
+    std::vector<std::string> names;
+    for (const auto& o : sys.outlets) names.push_back(o.name);
+    outflow = std::make_unique<OutflowCsvWriter<D>>(dir + "/outflow.csv", names);
+    observers.push_back(outflow.get());
+  }
   if (scene.output.events) {
     log = std::make_unique<EventLogWriter<D>>(dir + "/events.bin", sys.size(),
                                               sys.fixed.empty() ? kEventLogVersion : kEventLogVersionFixed);
@@ -170,6 +178,7 @@ RunOutcome run_system(const Scene& scene, const System<D>& sys, const std::strin
   info.particles = sys.size();
   info.seed = scene.seed;
   info.end_time = scene.end_time;
+  info.flows = flows;
   write_summary<D>(dir + "/summary.json", info, res);
   RunOutcome out;
   out.status = res.status;
@@ -281,6 +290,8 @@ std::string describe(const Scene& scene, const System<D>& sys) {
   for (const auto& w : sys.walls) {
     s += fmt::format("  [wall.{}] {}\n", w.name, w.geometry().describe());
   }
+  for (const auto& o : sys.outlets)
+    s += fmt::format("  [outlet.{}] {}{}\n", o.name, o.face >= 0 ? "open face: " : "", o.region.describe());
   if (sys.gravity.squaredNorm() > 0.0)
     s += fmt::format("gravity      ({})\n", fmt::join(sys.gravity, ", "));
   if (scene.tc > 0.0) s += fmt::format("TC model     collisions within {} of a previous one are elastic\n", scene.tc);
@@ -309,7 +320,7 @@ std::string describe(const Scene& scene, const System<D>& sys) {
                    scene.output.thermo_interval > 0.0
                        ? fmt::format(" (every {})", scene.output.thermo_interval)
                        : std::string(" (t = 0 and end)"),
-                   scene.output.events ? " events.bin" : "") +
+                   std::string(sys.outlets.empty() ? "" : " outflow.csv") + (scene.output.events ? " events.bin" : "")) +
        (scene.output.snapshot_interval > 0.0
             ? fmt::format("             snapshots.pvd + snapshots/*.vtp every {}\n", scene.output.snapshot_interval)
             : std::string());

@@ -697,6 +697,57 @@ std::shared_ptr<const WallShape<D>> read_shape_itself(const TableReader& t, cons
   return std::make_shared<ConeWall<D>>(point, axis, radii[0], radii[1], length, read_rotation<D>(t));
 }
 
+// An [outlet.NAME] table (contact/outlet.hpp): an open face of the domain, a plane, a box or a
+// cylinder (2D: a disk).
+template <int D>
+Outlet<D> read_outlet(const std::string& name, const TableReader& t, const System<D>& sys) {
+  Outlet<D> o;
+  o.name = name;
+  const std::string type = t.string("type", {"face", "plane", "box", "cylinder"});
+  try {
+    if (type == "face") {
+      t.allow({"type", "face"});
+      const std::string f = D == 3 ? t.string("face", {"x-", "x+", "y-", "y+", "z-", "z+"})
+                                   : t.string("face", {"x-", "x+", "y-", "y+"});
+      const int k = f[0] - 'x';
+      const bool up = f[1] == '+';
+      if (sys.periodic[k])
+        t.fail("face", fmt::format("the domain is periodic along {}: that axis has no open face", kAxis[k]),
+               t.need("face"));
+      Vec<D> p = sys.lower, n = Vec<D>::Zero();
+      p[k] = up ? sys.upper[k] : sys.lower[k];
+      n[k] = up ? -1.0 : 1.0;  // towards the grains: removed beyond the face
+      o.region = OutletRegion<D>::half_space(p, n);
+      o.face = 2 * k + (up ? 1 : 0);
+    } else if (type == "plane") {
+      t.allow({"type", "point", "normal"});
+      o.region = OutletRegion<D>::half_space(to_vec<D>(t.numbers("point", D)), read_direction<D>(t, "normal"));
+    } else if (type == "box") {
+      t.allow({"type", "lower", "upper"});
+      const Vec<D> lo = to_vec<D>(t.numbers("lower", D)), hi = to_vec<D>(t.numbers("upper", D));
+      for (int k = 0; k < D; ++k)
+        if (!(hi[k] > lo[k]))
+          t.fail("upper", fmt::format("must exceed lower along {} ({} <= {})", kAxis[k], hi[k], lo[k]), t.need("upper"));
+      o.region = OutletRegion<D>::box(lo, hi);
+    } else {
+      if constexpr (D == 3) t.allow({"type", "point", "axis", "radius", "length"});
+      else t.allow({"type", "point", "radius"});
+      const Vec<D> p = to_vec<D>(t.numbers("point", D));
+      const double r = t.number("radius", kPositive);
+      Vec<D> a = Vec<D>::Zero();
+      double L = 0.0;
+      if constexpr (D == 3) {
+        a = read_direction<D>(t, "axis");
+        L = t.number("length", kPositive);
+      }
+      o.region = OutletRegion<D>::cylinder(p, a, r, L);
+    }
+  } catch (const std::invalid_argument& e) {
+    fail(t.file(), t.path(), e.what());
+  }
+  return o;
+}
+
 // A bounded wall must lie within the domain (it would otherwise stand where no grain can be).
 template <int D>
 void check_walls_fit(const std::string& file, const System<D>& sys) {
@@ -761,6 +812,17 @@ void build_system(const TableReader& top, const TableReader& run, const fs::path
                                    kMaxWalls));
   check_walls_fit<D>(file, sys);
 
+  // [outlet.NAME]
+  for (const auto& [name, t] : named_tables(top, "outlet")) {
+    sys.outlets.push_back(read_outlet<D>(name, t, sys));
+    const Outlet<D>& o = sys.outlets.back();
+    if (o.face < 0 && !o.region.meets_box(sys.lower, sys.upper))
+      scene.warnings.push_back(fmt::format(
+          "{}: outlet.{}: the region lies outside the domain, so no grain can reach it{}", file, name,
+          o.region.kind() == OutletRegion<D>::Kind::HalfSpace ? " (for an open face of the domain use type = \"face\")"
+                                                               : ""));
+  }
+
   // [particles.NAME]: read and validate every group, then place the groups with fixed positions
   // first (file groups, checked against each other; then lattice groups), then the random groups
   // around everything placed so far. Within each kind groups go in file order; particle ids
@@ -810,6 +872,12 @@ void build_system(const TableReader& top, const TableReader& run, const fs::path
     const Group<D>& g = b.groups[gi];
     scene.group_names.push_back(g.name);
     for (std::size_t i = 0; i < g.r.size(); ++i) {
+      for (const Outlet<D>& o : sys.outlets)
+        if (o.region.inside(g.x[i]))
+          fail(file, fmt::format("particles.{}", g.name),
+               fmt::format("particle {} of the group at {} starts inside outlet.{} (it would leave at t = 0); move the "
+                           "outlet or the grains",
+                           i, vec_str<D>(g.x[i]), o.name));
       sys.x.push_back(g.x[i]);
       sys.v.push_back(g.v[i]);
       sys.w.push_back(g.w[i]);
@@ -827,7 +895,7 @@ Scene build_scene(toml::table& root, const std::string& file, const fs::path& ba
   Scene scene;
   scene.path = file;
   const TableReader top(scene.path, root, "");
-  top.allow({"run", "domain", "material", "particles", "wall", "output", "hybrid"});
+  top.allow({"run", "domain", "material", "particles", "wall", "outlet", "output", "hybrid"});
 
   // [run]
   const TableReader run = top.sub("run");

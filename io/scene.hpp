@@ -56,6 +56,7 @@ struct Scene {
   HybridSpec hybrid;
   std::vector<std::string> group_names;  // [particles.NAME] tables in file order
   std::vector<int> group;                // per particle: index into group_names
+  std::vector<std::string> warnings;     // "<file>: <key>: <problem>" lines the CLI prints; the scene runs
   std::variant<System<2>, System<3>> system;
 };
 

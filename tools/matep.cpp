@@ -92,6 +92,7 @@ Args parse(const std::vector<std::string>& rest, bool allow_out) {
 int cmd_check(const std::vector<std::string>& rest) {
   const Args a = parse(rest, false);
   const matep::Scene scene = matep::load_scene(a.scene, a.sets);
+  for (const auto& w : scene.warnings) fmt::print(stderr, "warning: {}\n", w);
   fmt::print("{}", matep::describe_scene(scene));
   fmt::print("scene is valid\n");
   return 0;
@@ -100,6 +101,7 @@ int cmd_check(const std::vector<std::string>& rest) {
 int cmd_run(const std::vector<std::string>& rest) {
   const Args a = parse(rest, true);
   const matep::Scene scene = matep::load_scene(a.scene, a.sets);
+  for (const auto& w : scene.warnings) fmt::print(stderr, "warning: {}\n", w);
   const std::string dir = a.out.empty() ? scene.output.dir : a.out;
   matep::ProgressFn progress;
   const bool tty = !a.quiet && isatty(STDERR_FILENO);

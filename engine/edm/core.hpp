@@ -92,6 +92,8 @@ class EdmCore {
   void ext_snapshot(Snapshot<D>&) {}
   void ext_sample(ThermoSample&) {}
   void ext_result(RunResult<D>&) {}
+  // Grain i has just been taken out by an outlet (its cell and queue entry are gone).
+  void ext_removed(int) {}
 
   // Registers a system event; its id is the returned value (valid once init has run).
   int add_system_event(const char* name, std::function<bool(double)> fire) {
@@ -147,6 +149,12 @@ class EdmCore {
       bracketed_walls_ = bracketed_walls_ || wall.geometry().bracketed();
     }
     wall_loads_.resize(shapes_.size());
+    face_outlet_.fill(-1);
+    for (std::size_t o = 0; o < sys.outlets.size(); ++o) {
+      const Outlet<D>& out = sys.outlets[o];
+      if (out.face >= 0) face_outlet_[static_cast<std::size_t>(out.face)] = static_cast<int>(o);
+      else outlets_.push_back({out.region, static_cast<int>(o)});
+    }
     setup_rough(rough);
     const double margin = derived().ext_cell_margin();
     build_cells(2.0 * rmax, margin);
@@ -160,8 +168,10 @@ class EdmCore {
 
   // Whether i is a fixed grain (System::fixed): never predicted, never moved.
   bool is_fixed(int i) const { return n_fixed_ > 0 && fixed_[i] != 0; }
+  // Whether i has left through an outlet.
+  bool is_removed(int i) const { return grains_out_ > 0 && removed_[i] != 0; }
   // Whether i flies between its events (its stored state may be extrapolated in time).
-  bool flies(int i) const { return !is_fixed(i) && derived().moved_by_events(i); }
+  bool flies(int i) const { return !is_fixed(i) && !is_removed(i) && derived().moved_by_events(i); }
 
   double mass(int i) const {
     const double R = hot_[i].R;
@@ -243,6 +253,9 @@ class EdmCore {
       res.radius[i] = hot_[i].R;
     }
     res.w = std::move(sys_.w);
+    res.grains_out = grains_out_;
+    res.mass_out = mass_out_;
+    if (grains_out_ > 0) keep_present(res, removed_);
     res.wall_seconds =
         std::chrono::duration<double>(std::chrono::steady_clock::now() - wall0).count();
     return res;
@@ -271,7 +284,7 @@ class EdmCore {
     return true;
   }
 
-  enum : std::uint8_t { kNone = 0, kPair = 1, kWall = 2 };
+  enum : std::uint8_t { kNone = 0, kPair = 1, kWall = 2, kOutlet = 3 };
 
   // ---- cells ---------------------------------------------------------------------------------
   // Cells at least one largest diameter dmax plus an extension's list skin (margin) wide
@@ -458,6 +471,15 @@ class EdmCore {
       }
     }
     test_pairs(i, now, best, type, partner);
+    // Outlet regions: the entry of the centre (contact/outlet.hpp), an event like a collision.
+    for (const auto& o : outlets_) {
+      const double dt = o.region.entry_time(h.x, h.v, g_, best);
+      if (dt < best) {
+        best = dt;
+        type = kOutlet;
+        partner = o.index;
+      }
+    }
     // Bracketed walls (an oscillating plane): root search stopped at the earliest event found so
     // far. A wall impact cut off this way lies beyond an event whose handling re-predicts i (a
     // collision of i, or a stale pair event), so it is never lost.
@@ -534,6 +556,10 @@ class EdmCore {
       int c = cold_[i].cell[k] + (up ? 1 : -1);
       if (c < 0 || c >= grid_.count(k)) {
         if (!sys_.periodic[k]) {
+          if (const int o = face_outlet_[static_cast<std::size_t>(2 * k + (up ? 1 : 0))]; o >= 0) {
+            remove_particle(i, t, o, /*in_cell=*/false);  // an open face: the grain leaves the run
+            return;
+          }
           cell_insert(i);
           status_ = "escaped";
           message_ = escape_message(static_cast<std::uint64_t>(i), k, t, hot_[i].x[k]);
@@ -571,9 +597,39 @@ class EdmCore {
         predict(i, t);
         return;
       }
+      case kOutlet:
+        advance(i, t);
+        remove_particle(i, t, cold_[i].partner);
+        return;
       default:
         return;
     }
+  }
+
+  // Takes grain i (at time t) out of the run through outlet o (an index into System::outlets): out
+  // of its cell and the queue, its counter bumped so that every prediction with it is stale, and its
+  // departure reported to the observers (outflow.csv, the event log).
+  void remove_particle(int i, double t, int o, bool in_cell = true) {
+    if (in_cell) cell_remove(i);
+    queue_->erase(i);
+    ++cold_[i].counter;
+    cold_[i].ev_t = cold_[i].cross_t = kNever;
+    if (removed_.empty()) removed_.assign(static_cast<std::size_t>(N_), 0);
+    removed_[i] = 1;
+    ++grains_out_;
+    const double m = mass(i);
+    mass_out_ += m;
+    derived().ext_removed(i);
+    if (observers_.empty()) return;
+    OutflowRecord<D> rec;
+    rec.time = t;
+    rec.id = static_cast<std::uint32_t>(i);
+    rec.outlet = static_cast<std::uint32_t>(o);
+    rec.mass = m;
+    rec.x = hot_[i].x;
+    rec.v = hot_[i].v;
+    if (!sys_.w.empty()) rec.w = sys_.w[i];
+    for (auto* obs : observers_) obs->on_outflow(rec);
   }
 
   void collide_pair(int i, int j) {
@@ -799,6 +855,7 @@ class EdmCore {
       snap.mode.assign(N_, 0);
       for (int i = 0; i < N_; ++i) snap.mode[i] = is_fixed(i) ? 4 : 0;
     }
+    if (grains_out_ > 0) keep_present(snap, removed_);
     for (auto* o : snapshot_observers_) o->on_snapshot(snap);
   }
 
@@ -814,6 +871,7 @@ class EdmCore {
     if (interval > 0.0) wall_loads_.report(interval, s.wall_loads);
     double mv2 = 0.0, pe = 0.0, rot = 0.0;
     for (int i = 0; i < N_; ++i) {
+      if (is_removed(i)) continue;
       const Hot<D>& h = hot_[i];
       const double dt = flies(i) ? t - h.t : 0.0;
       Vec<D> v = h.v, x = h.x;
@@ -826,13 +884,16 @@ class EdmCore {
     }
     if (!sys_.w.empty())
       for (int i = 0; i < N_; ++i)
-        rot += 0.5 * inertia_factor<D>() * mass(i) * hot_[i].R * hot_[i].R * sys_.w[i].squaredNorm();
+        if (!is_removed(i)) rot += 0.5 * inertia_factor<D>() * mass(i) * hot_[i].R * hot_[i].R * sys_.w[i].squaredNorm();
     s.kinetic_energy = 0.5 * mv2;
     s.rotational_energy = rot;
     s.potential_energy = pe;
-    const int moving = N_ - n_fixed_;  // fixed grains have no kinetic degrees of freedom
+    const int moving = N_ - n_fixed_ - static_cast<int>(grains_out_);  // fixed grains have no kinetic degrees of freedom
     s.temperature = moving > 0 ? mv2 / (D * moving) : 0.0;
     s.collisions = counts_.collisions();
+    s.grains = static_cast<std::uint64_t>(N_) - grains_out_;
+    s.grains_out = grains_out_;
+    s.mass_out = mass_out_;
     derived().ext_sample(s);
     // P V = N T + (1/(d dt)) sum_collisions r_ij . dp_i  (REFERENCES 2.3; Smallenburg's EDMD).
     // The kinetic part uses the mean of the kinetic energies at the two ends of the interval.
@@ -847,6 +908,7 @@ class EdmCore {
   void measure_overlaps(RunResult<D>& res) {
     double worst = 0.0, worst_rel = 0.0;
     for (int i = 0; i < N_; ++i) {
+      if (is_removed(i)) continue;
       const Hot<D>& a = hot_[i];
       const bool fi = is_fixed(i);
       for_neighbours(i, [&](int j, const Vec<D>& shift) {
@@ -892,6 +954,17 @@ class EdmCore {
   std::vector<Vec<D>> anchors_;               // their anchors (torque reference)
   WallLoads<D> wall_loads_;                   // the grains' impulses on the walls since the last sample
   bool bracketed_walls_ = false;  // some wall's impact time is a bracketing search
+  // Outlets (System::outlets): the regions whose entry is an event, with their index among the
+  // system's outlets; the open faces (2 axis + upper) by the same index, -1 where closed.
+  struct OutletEvent {
+    OutletRegion<D> region;
+    int index;
+  };
+  std::vector<OutletEvent> outlets_;
+  std::array<int, 2 * D> face_outlet_{};
+  std::vector<std::uint8_t> removed_;  // per particle (allocated at the first removal)
+  std::uint64_t grains_out_ = 0;
+  double mass_out_ = 0.0;
   double window_ = 0.0;
   double now_ = 0.0;
 

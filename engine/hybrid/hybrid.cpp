@@ -134,7 +134,8 @@ class HybridEngine final : public edm::EdmCore<D, CalendarQueue, HybridEngine<D>
   // A fixed grain (System::fixed) is kFixed for the whole run: an immovable sphere in the hard
   // collisions (the core) and a partner in the soft set's contact lists that is never integrated;
   // it never switches, sleeps or wakes, and a hard grain colliding with it is judged by the wall rule.
-  enum : std::uint8_t { kHard = 0, kSoft = 1, kPending = 2, kAsleep = 3, kFixed = 4 };
+  // kGone: taken out by an outlet.
+  enum : std::uint8_t { kHard = 0, kSoft = 1, kPending = 2, kAsleep = 3, kFixed = 4, kGone = 5 };
 
   // Whether i moves ballistically between its events (hard or pending), i.e. its stored state may
   // be extrapolated in time; a soft or sleeping particle is at its last substep.
@@ -183,6 +184,10 @@ class HybridEngine final : public edm::EdmCore<D, CalendarQueue, HybridEngine<D>
     s.collisions += hstats_soft_begun_;
   }
   void ext_result(RunResult<D>& res) { hybrid_result(res); }
+  void ext_removed(int i) {
+    mode_[i] = kGone;
+    iface_flag_[i] = 0;
+  }
 
   using PairEntry = soft::PairEntry<D>;  // owner i, partner j, constants ctab_[c], image shift sh
   struct WallEntry {
@@ -753,10 +758,17 @@ class HybridEngine final : public edm::EdmCore<D, CalendarQueue, HybridEngine<D>
     const Vec<D>* const BLO = cblo_.data();
     const Vec<D>* const BHI = cbhi_.data();
     bool dirty = false;
+    const bool outlets = !sys_.outlets.empty();
     for (const int i : soft_) {
       dirty |= soft::kick_drift<D>(f_[i], acc_[i], vh_[i], HOT[i].x, x0_[i], minv_[i], g, h, lim2);
       HOT[i].t = t;
       const Vec<D>& x = HOT[i].x;
+      if (outlets) [[unlikely]] {
+        if (const int o = outlet_at(x); o >= 0) {
+          leaving_.emplace_back(i, o);
+          continue;
+        }
+      }
       // Still inside the box of its cell (edge cells of closed axes: up to the escape limit;
       // NaN fails the test): no cell update.
       if (!((x.array() >= BLO[i].array()).all() && (x.array() < BHI[i].array()).all())) relocate(i, t);
@@ -765,6 +777,7 @@ class HybridEngine final : public edm::EdmCore<D, CalendarQueue, HybridEngine<D>
     if (rot_)
       for (const int i : soft_) soft::kick_spin(tq_[i], alpha_[i], wh_[i], iinv_[i], h);
     hstats_.soft_particle_steps += soft_.size();
+    if (!leaving_.empty()) remove_soft(t);
     if (!status_.empty()) return;
     // 2. Joins: pending particles, then hard particles within the skin of a soft one.
     for (std::size_t k = 0; k < pending_.size(); ++k)
@@ -776,6 +789,9 @@ class HybridEngine final : public edm::EdmCore<D, CalendarQueue, HybridEngine<D>
     // A turning wall sweeps towards the grains too: with their half skin, half the skin.
     if (sweep_ > 0.0 && sweep_ * (t - build_t_) > 0.5 * lskin_) dirty_ = true;
     if (dirty_) rebuild_entries(t);
+    for (const int k : unsupported_)  // sleepers that lost a touching grain to an outlet: wake test
+      if (mode_[k] == kAsleep) watch(k);
+    unsupported_.clear();
     soft_forces(t);
     if (t == 0.0) start_soft_state();
     if (asleep_ > 0 && !watched_.empty()) wake_loaded(t);
@@ -812,6 +828,47 @@ class HybridEngine final : public edm::EdmCore<D, CalendarQueue, HybridEngine<D>
     } else {
       clock_ = false;
     }
+  }
+
+  // The outlet (index into System::outlets) whose region holds x, or -1.
+  int outlet_at(const Vec<D>& x) const {
+    Vec<D> y = x;
+    if (any_periodic_)
+      for (int k = 0; k < D; ++k)
+        if (sys_.periodic[k]) y[k] = wrap_periodic(y[k], lo_[k], hi_[k]);
+    for (std::size_t o = 0; o < sys_.outlets.size(); ++o)
+      if (sys_.outlets[o].region.inside(y)) return static_cast<int>(o);
+    return -1;
+  }
+
+  // The soft grains that entered an outlet in this substep's drift (leaving_) leave the run with
+  // their half-step velocity; a sleeper one of them touched has lost a support and is tested for
+  // waking at this substep (fz_lost_).
+  void remove_soft(double t) {
+    std::sort(leaving_.begin(), leaving_.end());  // by id: the order does not depend on the soft set's
+    if (sleeping_ && asleep_ > 0)
+      pairs_.for_each([&](const PairEntry& e) {
+        if (!e.touch) return;
+        for (const auto& [i, o] : leaving_) {
+          const std::uint32_t k = ui(i) == e.i ? e.j : ui(i) == e.j ? e.i : ui(-1);
+          if (k != ui(-1) && mode_[k] == kAsleep) {
+            fz_lost_[k] = 1;
+            unsupported_.push_back(static_cast<int>(k));
+          }
+        }
+      });
+    for (const auto& [i, o] : leaving_) {
+      const int s = slot_[i];
+      soft_[s] = soft_.back();
+      slot_[soft_[s]] = s;
+      soft_.pop_back();
+      slot_[i] = -1;
+      hot_[i].v = vh_[i];
+      if (rot_) sys_.w[i] = wh_[i];
+      this->remove_particle(i, t, o);
+    }
+    leaving_.clear();
+    dirty_ = true;
   }
 
   // Hard interface particles within the skin of a soft (or sleeping) one join the soft set.
@@ -1371,6 +1428,8 @@ class HybridEngine final : public edm::EdmCore<D, CalendarQueue, HybridEngine<D>
   bool any_periodic_ = false;
   std::vector<Vec<D>> cblo_, cbhi_;  // the box a soft particle may move in without relocating
   std::vector<int> freed_;           // soft particles released at this substep
+  std::vector<std::pair<int, int>> leaving_;  // (soft particle, outlet) entered at this substep
+  std::vector<int> unsupported_;     // sleepers that touched a grain that left
   std::vector<int> sg_start_, sg_items_, sg_cell_, sg_part_, sg_fill_;
   std::vector<std::uint64_t> moved_, moved_w_;
   std::vector<double> fz_scale_;

@@ -62,6 +62,10 @@ class TdmEngine {
   void force_body(int t);
   bool integrate_one(std::uint32_t i);
   void integrate(int t);
+  // ---- outlets ----
+  bool scan_outlets();
+  void drop_gone();
+  void set_ranges();
   // ---- diagnostics ----
   ThermoSample sample(double time);
   Snapshot<D> snapshot(double time) const;
@@ -155,6 +159,16 @@ class TdmEngine {
   double last_sample_t_ = 0.0;
   soft::SpringMemory<D> springs_;  // contacts remembered across a rebuild
 
+  // Outlets (System::outlets): grains whose centre is inside one after a step are taken out
+  // (scan_outlets) and dropped from the arrays at the rebuild that follows (drop_gone).
+  std::vector<Outlet<D>> outlets_;
+  std::vector<std::uint8_t> gone_;        // per particle in storage order: leaving at this step
+  std::vector<std::uint8_t> removed_id_;  // per particle id: has left (empty until the first)
+  std::size_t N0_ = 0;                    // particles at the start (ids 0 .. N0_ - 1)
+  std::uint64_t grains_out_ = 0;
+  double mass_out_ = 0.0;
+  double particle_steps_ = 0.0;
+
   std::uint64_t steps_ = 0, rebuilds_ = 0, pair_begun_ = 0, wall_begun_ = 0;
   std::uint64_t build_step_ = 0;  // the step of the last rebuild
   double sweep_ = 0.0;            // the walls' largest sweep speed (contact/wall.hpp)
@@ -189,6 +203,8 @@ SoftPlan preflight(const System<D>& sys, const TdmSettings& set) {
 template <int D>
 void TdmEngine<D>::setup() {
   N_ = sys_.size();
+  N0_ = N_;
+  outlets_ = sys_.outlets;
   sys_.check_fixed();
   n_fixed_ = sys_.fixed_count();
   if (n_fixed_ > 0) fixed_ = sys_.fixed;
@@ -264,15 +280,8 @@ void TdmEngine<D>::setup() {
 
   // Threads: contiguous particle ranges of at least kMinPerThread particles (below that, the
   // fork-join of a parallel region each step costs more than it saves).
-  int T = set_.threads > 0 ? set_.threads : omp_get_max_threads();
-  T = std::max(1, std::min<int>(T, static_cast<int>(N_ / kMinPerThread)));
-  T_ = T;
-  lo_.resize(T_);
-  hi_.resize(T_);
-  for (int t = 0; t < T_; ++t) {
-    lo_[t] = static_cast<std::uint32_t>(N_ * t / T_);
-    hi_[t] = static_cast<std::uint32_t>(N_ * (t + 1) / T_);
-  }
+  T_ = set_.threads > 0 ? set_.threads : omp_get_max_threads();
+  set_ranges();
   wlo_.resize(T_);
   whi_.resize(T_);
   spill_.resize(T_);
@@ -280,6 +289,80 @@ void TdmEngine<D>::setup() {
   loads_t_.resize(T_);
   for (auto& l : loads_t_) l.resize(shapes_.size());
   for (const WallShape<D>* w : shapes_) anchors_.push_back(w->anchor());
+}
+
+// The threads' particle ranges for N_ particles (fewer threads once grains have left: at least
+// kMinPerThread particles each).
+template <int D>
+void TdmEngine<D>::set_ranges() {
+  T_ = std::max(1, std::min<int>(T_, static_cast<int>(N_ / kMinPerThread)));
+  lo_.resize(T_);
+  hi_.resize(T_);
+  for (int t = 0; t < T_; ++t) {
+    lo_[t] = static_cast<std::uint32_t>(N_ * t / T_);
+    hi_[t] = static_cast<std::uint32_t>(N_ * (t + 1) / T_);
+  }
+}
+
+// After a step: every moving grain whose centre is inside an outlet leaves (reported to the
+// observers with its half-step velocity). Returns whether any did (the arrays then need a rebuild).
+template <int D>
+bool TdmEngine<D>::scan_outlets() {
+  const double t = static_cast<double>(steps_) * dt_;
+  bool any = false;
+  for (std::size_t i = 0; i < N_; ++i) {
+    if (is_fixed(i)) continue;
+    Vec<D> x = x_[i];
+    for (int k = 0; k < D; ++k)
+      if (sys_.periodic[k]) x[k] = wrap_periodic(x[k], sys_.lower[k], sys_.upper[k]);
+    for (std::size_t o = 0; o < outlets_.size(); ++o) {
+      if (!outlets_[o].region.inside(x)) continue;
+      if (gone_.empty()) gone_.assign(N_, 0);
+      if (removed_id_.empty()) removed_id_.assign(N0_, 0);
+      gone_[i] = 1;
+      removed_id_[id_[i]] = 1;
+      any = true;
+      ++grains_out_;
+      mass_out_ += m_[i];
+      OutflowRecord<D> rec;
+      rec.time = t;
+      rec.id = id_[i];
+      rec.outlet = static_cast<std::uint32_t>(o);
+      rec.mass = m_[i];
+      rec.x = x;
+      rec.v = v_[i];
+      rec.w = w_[i];
+      for (auto* ob : obs_) ob->on_outflow(rec);
+      break;
+    }
+  }
+  return any;
+}
+
+// Drops the grains marked in gone_ from every per-particle array (storage order kept).
+template <int D>
+void TdmEngine<D>::drop_gone() {
+  std::size_t m = 0;
+  for (std::size_t i = 0; i < N_; ++i) {
+    if (gone_[i]) continue;
+    if (m != i) {
+      x_[m] = x_[i]; v_[m] = v_[i]; acc_[m] = acc_[i]; f_[m] = f_[i];
+      w_[m] = w_[i]; alpha_[m] = alpha_[i]; tq_[m] = tq_[i];
+      R_[m] = R_[i]; m_[m] = m_[i]; minv_[m] = minv_[i]; iinv_[m] = iinv_[i];
+      mat_[m] = mat_[i]; id_[m] = id_[i];
+      if (n_fixed_ > 0) fixed_[m] = fixed_[i];
+    }
+    ++m;
+  }
+  N_ = m;
+  for (auto* a : {&x_, &v_, &acc_, &f_}) a->resize(N_);
+  for (auto* a : {&w_, &alpha_, &tq_}) a->resize(N_);
+  for (auto* a : {&R_, &m_, &minv_, &iinv_}) a->resize(N_);
+  mat_.resize(N_);
+  id_.resize(N_);
+  if (n_fixed_ > 0) fixed_.resize(N_);
+  gone_.assign(N_, 0);
+  set_ranges();
 }
 
 template <int D>
@@ -298,6 +381,7 @@ void TdmEngine<D>::rebuild() {
       mem.remember_wall(id_[wl_i_[e]], wall_slot(wl_w_[e], wl_f_[e]), rot_ ? wl_xi_[e] : Vec<D>::Zero(),
                         wl_mr_.empty() ? Spin<D>::Zero() : wl_mr_[e]);
   mem.sort();
+  if (!gone_.empty() && std::find(gone_.begin(), gone_.end(), 1) != gone_.end()) drop_gone();
 
   // 2. Wrap periodic axes, check the state, bin into cells.
   const std::size_t ncell = static_cast<std::size_t>(grid_.cells());
@@ -686,13 +770,16 @@ ThermoSample TdmEngine<D>::sample(double time) {
   s.potential_energy = pot;
   s.elastic_energy = el;
   s.soft = N_;
+  s.grains = N_;
+  s.grains_out = grains_out_;
+  s.mass_out = mass_out_;
   const std::size_t moving = N_ - n_fixed_;  // fixed grains have no kinetic degrees of freedom
   s.temperature = moving > 0 ? mv2 / (D * static_cast<double>(moving)) : 0.0;
   s.collisions = pair_begun_ + wall_begun_;
   s.pressure = (mv2 + vir) / (D * sys_.volume());
   // The walls' loads: the threads' impulses in thread order, as means over the interval.
   if (time > last_sample_t_) {
-    for (int t = 1; t < T_; ++t) {
+    for (std::size_t t = 1; t < loads_t_.size(); ++t) {  // every thread the run has had
       loads_t_[0].add(loads_t_[t]);
       loads_t_[t].clear();
     }
@@ -706,10 +793,10 @@ template <int D>
 Snapshot<D> TdmEngine<D>::snapshot(double time) const {
   Snapshot<D> s;
   s.time = time;
-  s.x.resize(N_);
-  s.v.resize(N_);
-  s.radius.resize(N_);
-  s.w.resize(N_);
+  s.x.resize(N0_);
+  s.v.resize(N0_);
+  s.radius.resize(N0_);
+  s.w.resize(N0_);
   for (std::size_t i = 0; i < N_; ++i) {
     const std::uint32_t k = id_[i];
     s.x[k] = x_[i];
@@ -718,9 +805,10 @@ Snapshot<D> TdmEngine<D>::snapshot(double time) const {
     s.radius[k] = R_[i];
   }
   if (n_fixed_ > 0) {  // mode 0 for a moving grain, 4 for a fixed one (as the hybrid writes)
-    s.mode.assign(N_, 0);
+    s.mode.assign(N0_, 0);
     for (std::size_t i = 0; i < N_; ++i) s.mode[id_[i]] = is_fixed(i) ? 4 : 0;
   }
+  if (grains_out_ > 0) keep_present(s, removed_id_);
   return s;
 }
 
@@ -780,8 +868,10 @@ RunResult<D> TdmEngine<D>::run() {
   };
   auto after_move = [&] {
     ++steps_;
+    particle_steps_ += static_cast<double>(N_);
     bool moved = false;
     for (const auto& a : acc_t_) moved = moved || a.moved;
+    if (!outlets_.empty() && scan_outlets()) moved = true;
     // A turning wall sweeps towards the grains too: together with their half skin, half the skin.
     if (sweep_ > 0.0 && sweep_ * static_cast<double>(steps_ - build_step_) * dt_ > 0.5 * skin_) moved = true;
     if (moved && status_ == "ok") rebuild();
@@ -843,10 +933,13 @@ RunResult<D> TdmEngine<D>::run() {
   res.counts.pair = pair_begun_;
   res.counts.wall = wall_begun_;
   Snapshot<D> last = snapshot(res.time);  // the final state in particle-id order
+  res.id = std::move(last.id);
   res.x = std::move(last.x);
   res.v = std::move(last.v);
   res.w = std::move(last.w);
   res.radius = std::move(last.radius);
+  res.grains_out = grains_out_;
+  res.mass_out = mass_out_;
   res.max_overlap = max_abs_;
   res.max_overlap_relative = max_rel_;
   SoftStats& s = res.soft;
@@ -860,7 +953,7 @@ RunResult<D> TdmEngine<D>::run() {
   s.threads = T_;
   res.wall_seconds = std::chrono::duration<double>(Clock::now() - t0).count();
   s.particle_steps_per_second =
-      static_cast<double>(N_) * static_cast<double>(steps_) / std::max(res.wall_seconds, 1e-9);
+      particle_steps_ / std::max(res.wall_seconds, 1e-9);
   return res;
 }
 

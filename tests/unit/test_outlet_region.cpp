@@ -154,6 +154,22 @@ TEST(OutletRegion, ClosedFormFlights) {
   // The limit: an entry at 0.5 is not reported with limit 0.4.
   EXPECT_EQ(bx.entry_time(Vec<3>::Zero(), Vec<3>(2, 0, 0), Vec<3>::Zero(), 0.4),
             std::numeric_limits<double>::infinity());
+  // No limit (an event-driven prediction with nothing else ahead): falling from z = 0.8 across the
+  // side of a cylinder along x (axis at z = 0.1, radius 0.1): enters at z = 0.2, t = sqrt(2 * 0.6 / g).
+  // The quartic's roots are searched up to their root bound, not over (0, 1e30).
+  const auto side = OutletRegion<3>::cylinder(Vec<3>(0.2, 0.5, 0.1), Vec<3>(1, 0, 0), 0.1, 0.6);
+  for (const double limit : {1.0, std::numeric_limits<double>::infinity()})
+    EXPECT_NEAR(side.entry_time(Vec<3>(0.5, 0.5, 0.8), Vec<3>::Zero(), Vec<3>(0, 0, -9.81), limit),
+                std::sqrt(1.2 / 9.81), 1e-15);
+  // The region meets a box (a grain inside the box can reach it) or not.
+  const Vec<3> lo = Vec<3>::Zero(), up = Vec<3>::Ones();
+  EXPECT_TRUE(OutletRegion<3>::half_space(Vec<3>(0, 0, 0.1), Vec<3>(0, 0, 1)).meets_box(lo, up));
+  EXPECT_FALSE(OutletRegion<3>::half_space(Vec<3>(0, 0, 0), Vec<3>(0, 0, 1)).meets_box(lo, up));
+  EXPECT_FALSE(OutletRegion<3>::half_space(Vec<3>(0, 0, -0.5), Vec<3>(1, 1, 1)).meets_box(lo, up));
+  EXPECT_TRUE(OutletRegion<3>::box(Vec<3>(0.9, 0.9, 0.9), Vec<3>(2, 2, 2)).meets_box(lo, up));
+  EXPECT_FALSE(OutletRegion<3>::box(Vec<3>(1, 0, 0), Vec<3>(2, 1, 1)).meets_box(lo, up));
+  EXPECT_TRUE(OutletRegion<3>::cylinder(Vec<3>(0.5, 0.5, -1), Vec<3>(0, 0, 1), 0.1, 1.05).meets_box(lo, up));
+  EXPECT_FALSE(OutletRegion<3>::cylinder(Vec<3>(0.5, 0.5, -1), Vec<3>(0, 0, 1), 0.1, 0.95).meets_box(lo, up));
   // Bad parameters are refused.
   EXPECT_THROW(OutletRegion<3>::half_space(Vec<3>::Zero(), Vec<3>::Zero()), std::invalid_argument);
   EXPECT_THROW(OutletRegion<3>::box(Vec<3>::Zero(), Vec<3>(1, 0, 1)), std::invalid_argument);

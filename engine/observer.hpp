@@ -16,6 +16,17 @@ enum class EventKind : std::uint8_t {
   ToSoft = 4,  // hybrid: particle switched to TDM
   ToHard = 5,  // hybrid: particle switched back to EDM
   Outflow = 6, // a grain left through an outlet (i: its id, j: the outlet's index)
+  Inflow = 7,  // a grain entered from an inlet (i: its id, j: the inlet's index)
+};
+
+// A grain inserted by an inlet (engine/inlet.hpp): its id, radius, mass and state as it entered.
+template <int D>
+struct InflowRecord {
+  double time = 0.0;
+  std::uint32_t id = 0;
+  std::uint32_t inlet = 0;  // index into System::inlets
+  double mass = 0.0, radius = 0.0;
+  Vec<D> x = Vec<D>::Zero(), v = Vec<D>::Zero();
 };
 
 // A grain taken out of the run by an outlet (one row of outflow.csv): its state as it entered.
@@ -60,6 +71,8 @@ struct ThermoSample {
   std::uint64_t grains = 0;       // grains present
   std::uint64_t grains_out = 0;   // grains removed by outlets so far
   double mass_out = 0.0;          // their mass
+  std::uint64_t grains_in = 0;    // grains inserted by inlets so far
+  double mass_in = 0.0;           // their mass
   // Per wall, the mean force of the grains on it and its torque about the wall's anchor over the
   // interval since the previous sample (engine/wall_loads.hpp): six numbers per wall, in wall order
   // (empty at t = 0).
@@ -90,6 +103,7 @@ class Observer {
   virtual bool wants_snapshots() const { return false; }
   virtual void on_snapshot(const Snapshot<D>&) {}
   virtual void on_outflow(const OutflowRecord<D>&) {}
+  virtual void on_inflow(const InflowRecord<D>&) {}
   // Called every few thousand events with the simulated time and the events so far.
   virtual void on_progress(double /*time*/, std::uint64_t /*events*/) {}
 };

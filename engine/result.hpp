@@ -9,6 +9,7 @@
 #include <vector>
 
 #include "contact/vec.hpp"
+#include "engine/inlet.hpp"
 
 namespace matep {
 
@@ -100,6 +101,9 @@ struct RunResult {
   std::vector<std::uint8_t> mode;     // hybrid: final mode per particle (0 hard, 1 soft, 3 asleep, 4 fixed)
   std::uint64_t grains_out = 0;       // grains removed by outlets
   double mass_out = 0.0;              // their mass
+  std::uint64_t grains_in = 0;        // grains inserted by inlets
+  double mass_in = 0.0;               // their mass
+  std::vector<InletReport> inlets;    // per inlet: grains due, inserted and missed (no free place)
 };
 
 // Keeps the final-state rows of the grains present (gone[k] == 0 for particle k, in id order;

@@ -164,6 +164,13 @@ SoftPlan plan_soft(const System<D>& sys) {
     double& r = sys.is_fixed(i) ? rmin_fixed[m] : rmin_moving[m];
     r = std::min(r, sys.radius[i]);
   }
+  for (const Inlet<D>& in : sys.inlets) {  // the grains an inlet will insert (engine/inlet.hpp)
+    const int m = in.material;
+    used[m] = 1;
+    rmin[m] = std::min(rmin[m], in.rmin);
+    rmax[m] = std::max(rmax[m], in.rmax);
+    rmin_moving[m] = std::min(rmin_moving[m], in.rmin);
+  }
   for (const auto& w : sys.walls) wall_used[w.material] = 1;
 
   // Law kind per particle material; all particle materials must share one.
@@ -239,6 +246,8 @@ SoftPlan plan_soft(const System<D>& sys) {
     if (!sys.w.empty()) s += sys.w[i].norm() * sys.radius[i];
     vmax = std::max(vmax, s);
   }
+  for (const Inlet<D>& in : sys.inlets)  // an inlet's mean velocity and four standard deviations
+    vmax = std::max(vmax, in.velocity.norm() + 4.0 * in.spread * std::sqrt(static_cast<double>(D)));
   const double g = sys.gravity.norm();
   double H = 0.0;
   if (g > 0.0)

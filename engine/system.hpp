@@ -17,6 +17,7 @@
 #include "contact/restitution.hpp"
 #include "contact/vec.hpp"
 #include "contact/wall.hpp"
+#include "engine/inlet.hpp"
 
 namespace matep {
 
@@ -79,6 +80,7 @@ struct System {
   std::vector<Material> materials;
   std::vector<Wall<D>> walls;
   std::vector<Outlet<D>> outlets;  // empty: a closed system (a grain leaving the domain stops the run)
+  std::vector<Inlet<D>> inlets;    // engine/inlet.hpp; their grains get the ids after the initial ones
 
   // Initial particle state, indexed by particle id.
   std::vector<Vec<D>> x;

@@ -35,6 +35,7 @@ const char* event_kind_name(std::uint8_t kind) {
     case 4: return "soft";
     case 5: return "hard";
     case 6: return "outflow";
+    case 7: return "inflow";
     default: return "unknown";
   }
 }
@@ -45,8 +46,9 @@ std::uint8_t parse_event_kind(std::string_view word) {
   if (word == "soft") return static_cast<std::uint8_t>(EventKind::ToSoft);
   if (word == "hard") return static_cast<std::uint8_t>(EventKind::ToHard);
   if (word == "outflow") return static_cast<std::uint8_t>(EventKind::Outflow);
+  if (word == "inflow") return static_cast<std::uint8_t>(EventKind::Inflow);
   throw std::invalid_argument(
-      fmt::format("--kind: unknown event kind '{}' (expected pair, wall, soft, hard or outflow)", word));
+      fmt::format("--kind: unknown event kind '{}' (expected pair, wall, soft, hard, outflow or inflow)", word));
 }
 
 std::vector<std::uint32_t> parse_id_list(std::string_view list) {
@@ -114,7 +116,7 @@ EventRecord read_record_at(const std::string& path, std::uint64_t index) {
       std::fread(buf, 1, kEventRecordSize, f.get()) != kEventRecordSize)
     throw IoError(fmt::format("{}: cannot read the event record at byte offset {}", path, off));
   EventRecord r = decode_event_record(buf);
-  if (r.kind < 1 || r.kind > 6)
+  if (r.kind < 1 || r.kind > 7)
     throw IoError(fmt::format("{}: corrupt event record at byte offset {} (kind {})", path, off,
                               static_cast<int>(r.kind)));
   return r;
@@ -305,6 +307,7 @@ std::string format_log_stats(const LogStats& s) {
   fmt::format_to(o, "{:<22}{:>14}\n", "switches to soft", s.by_kind[4]);
   fmt::format_to(o, "{:<22}{:>14}\n", "switches to hard", s.by_kind[5]);
   if (s.by_kind[6]) fmt::format_to(o, "{:<22}{:>14}\n", "grains out (outflow)", s.by_kind[6]);
+  if (s.by_kind[7]) fmt::format_to(o, "{:<22}{:>14}\n", "grains in (inflow)", s.by_kind[7]);
   fmt::format_to(o, "\n");
 
   fmt::format_to(o, "collision rate (pair + wall collisions per unit time), {} bins\n", s.bins.size());
@@ -471,6 +474,8 @@ struct SceneView {
   std::vector<std::string> wall_text;
   std::vector<double> radius;  // per particle (rough collisions)
   std::vector<std::uint8_t> fixed;  // per particle: a fixed grain (empty: none)
+  std::vector<int> inlet_material;  // per inlet: the material of its grains (their mass and radius come
+                                    // from the log's inflow records)
   RoughRules rough;            // which material pairs are rough, and their rule
 };
 
@@ -480,15 +485,25 @@ void fill_view(SceneView& v, const System<D>& sys, const Scene& scene, const Eve
   if (static_cast<std::uint32_t>(D) != h.dimension)
     throw IoError(fmt::format("{}: the scene is {}D but the event log {} is {}D", scene.path, D, log,
                               h.dimension));
-  if (sys.size() != h.particles)
-    throw IoError(fmt::format("{}: the scene has {} particles but the event log {} has {}", scene.path,
-                              sys.size(), log, h.particles));
+  const std::uint64_t slots = inlet_slots(sys.inlets, scene.end_time);
+  if (sys.size() + slots != h.particles)
+    throw IoError(fmt::format("{}: the scene has {} particles{} but the event log {} has {}", scene.path,
+                              sys.size() + slots,
+                              slots > 0 ? fmt::format(" ({} at the start, {} ids for its inlets)", sys.size(), slots)
+                                        : std::string(),
+                              log, h.particles));
+  // The inlets' grains get their mass and radius from the inflow records (0 until then: a collision
+  // of a grain not yet inserted fails the mass check).
   v.materials = sys.materials;
   v.material = sys.material;
-  v.mass.resize(sys.size());
+  v.material.resize(h.particles, 0);
+  v.mass.assign(h.particles, 0.0);
   for (std::size_t p = 0; p < sys.size(); ++p) v.mass[p] = sys.mass(p);
   v.radius = sys.radius;
+  v.radius.resize(h.particles, 0.0);
   v.fixed = sys.fixed;
+  if (!v.fixed.empty()) v.fixed.resize(h.particles, 0);
+  for (const auto& in : sys.inlets) v.inlet_material.push_back(in.material);
   try {
     v.rough = make_rough_rules(sys.materials);
   } catch (const std::invalid_argument& e) {
@@ -844,6 +859,12 @@ VerifyResult verify_log(const std::string& path, const Scene* scene, double tol)
   std::uint64_t index = 0;
   while (reader.next(rec)) {
     ++res.records;
+    if (sv && rec.kind == static_cast<std::uint8_t>(EventKind::Inflow) && rec.i < lf.header.particles &&
+        rec.j < sv->inlet_material.size()) {
+      sv->mass[rec.i] = rec.mi;
+      sv->radius[rec.i] = rec.mj;
+      sv->material[rec.i] = sv->inlet_material[rec.j];
+    }
     if (!is_collision(rec.kind)) {
       ++res.skipped;
       ++index;

@@ -45,7 +45,7 @@ inline std::uint64_t record_offset(std::uint64_t index) {
 struct LogStats {
   std::string path;
   LogFile file;
-  std::uint64_t by_kind[7] = {};  // index = kind (1 pair, 2 wall, 3 cell, 4 soft, 5 hard, 6 outflow)
+  std::uint64_t by_kind[8] = {};  // index = kind (1 pair, 2 wall, 3 cell, 4 soft, 5 hard, 6 outflow, 7 inflow)
   double t_first = 0.0, t_last = 0.0;  // times of the first and last record (0 if none)
 
   // Collision rate over time: `bins` equal bins from t_first to t_last (the last bin includes

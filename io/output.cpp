@@ -148,7 +148,7 @@ bool EventLogReader::next(EventRecord& rec) {
     throw IoError(fmt::format("{}: truncated event record at byte offset {} ({} of {} bytes)", path_,
                               offset_, got, kEventRecordSize));
   rec = decode_event_record(buf);
-  if (rec.kind < 1 || rec.kind > 6)
+  if (rec.kind < 1 || rec.kind > 7)
     throw IoError(fmt::format("{}: corrupt event record at byte offset {} (kind {})", path_, offset_,
                               static_cast<int>(rec.kind)));
   offset_ += kEventRecordSize;
@@ -226,6 +226,22 @@ void EventLogWriter<D>::on_outflow(const OutflowRecord<D>& o) {
   on_collision(c);
 }
 
+// A grain inserted by an inlet: kind 7, i its id, j the inlet's index, mi its mass, mj its radius,
+// its velocity as vi_before = vi_after.
+template <int D>
+void EventLogWriter<D>::on_inflow(const InflowRecord<D>& o) {
+  CollisionRecord<D> c;
+  c.time = o.time;
+  c.kind = EventKind::Inflow;
+  c.i = o.id;
+  c.j = o.inlet;
+  c.mi = o.mass;
+  c.mj = o.radius;
+  c.e = 0.0;
+  c.vi_before = c.vi_after = o.v;
+  on_collision(c);
+}
+
 template class EventLogWriter<2>;
 template class EventLogWriter<3>;
 
@@ -267,7 +283,7 @@ ThermoCsvWriter::ThermoCsvWriter(const std::string& path, const std::vector<std:
   std::fputs("time,kinetic_energy,rotational_energy,potential_energy,temperature,collisions,pressure,elastic_energy,"
              "soft",
              f_);
-  if (flows_) std::fputs(",grains,grains_out,mass_out", f_);
+  if (flows_) std::fputs(",grains,grains_in,mass_in,grains_out,mass_out", f_);
   for (const auto& w : walls) {
     if (dim_ == 2) fmt::print(f_, ",{0}_fx,{0}_fy,{0}_tz", w);
     else fmt::print(f_, ",{0}_fx,{0}_fy,{0}_fz,{0}_tx,{0}_ty,{0}_tz", w);
@@ -283,7 +299,7 @@ void ThermoCsvWriter::on_sample(const ThermoSample& s) {
   fmt::print(f_, "{:.17g},{:.17g},{:.17g},{:.17g},{:.17g},{},{:.17g},{:.17g},{}", s.time, s.kinetic_energy,
              s.rotational_energy, s.potential_energy, s.temperature, s.collisions, s.pressure,
              s.elastic_energy, s.soft);
-  if (flows_) fmt::print(f_, ",{},{},{:.17g}", s.grains, s.grains_out, s.mass_out);
+  if (flows_) fmt::print(f_, ",{},{},{:.17g},{},{:.17g}", s.grains, s.grains_in, s.mass_in, s.grains_out, s.mass_out);
   // Six numbers per wall in the sample (2D: force x, y and torque z are the meaningful ones); none
   // at t = 0 (no interval yet): zeros.
   for (std::size_t w = 0; w < walls_; ++w) {
@@ -479,8 +495,15 @@ void write_summary(const std::string& path, const SummaryInfo& info, const RunRe
   fmt::print(f, "  \"max_overlap\": {},\n", json_number(r.max_overlap));
   fmt::print(f, "  \"max_overlap_relative\": {},\n", json_number(r.max_overlap_relative));
   fmt::print(f, "  \"grains_at_end\": {},\n", r.x.size());
-  if (r.grains_out > 0 || info.flows)
+  if (info.flows) {
+    fmt::print(f, "  \"inflow\": {{\"grains\": {}, \"mass\": {}}},\n", r.grains_in, json_number(r.mass_in));
     fmt::print(f, "  \"outflow\": {{\"grains\": {}, \"mass\": {}}},\n", r.grains_out, json_number(r.mass_out));
+    fmt::print(f, "  \"inlets\": [");
+    for (std::size_t k = 0; k < r.inlets.size(); ++k)
+      fmt::print(f, "{}{{\"name\": {}, \"due\": {}, \"inserted\": {}, \"missed\": {}}}", k ? ", " : "",
+                 json_string(r.inlets[k].name), r.inlets[k].due, r.inlets[k].inserted, r.inlets[k].missed);
+    fmt::print(f, "],\n");
+  }
   if (r.method != Method::Edm) {
     const SoftStats& s = r.soft;
     fmt::print(f, "  \"soft\": {{\"steps\": {}, \"dt\": {}, \"default_dt\": {}, \"max_stable_dt\": {}, "

@@ -79,6 +79,7 @@ class EventLogWriter final : public Observer<D> {
   bool wants_collisions() const override { return true; }
   void on_collision(const CollisionRecord<D>& rec) override;
   void on_outflow(const OutflowRecord<D>& rec) override;
+  void on_inflow(const InflowRecord<D>& rec) override;
   void close();
 
  private:
@@ -92,8 +93,9 @@ class ThermoCsvWriter final : public Observer<2>, public Observer<3> {
   // With wall names, each row also gives every wall's mean force and torque over the interval
   // (ThermoSample::wall_loads): columns NAME_fx, NAME_fy[, NAME_fz], then NAME_tz (2D) or NAME_tx,
   // NAME_ty, NAME_tz (3D).
-  // With flows (a scene with outlets), each row also gives the grains present, the grains removed
-  // so far and their mass: columns grains, grains_out, mass_out.
+  // With flows (a scene with inlets or outlets), each row also gives the grains present, the grains
+  // inserted and removed so far and their masses: columns grains, grains_in, mass_in, grains_out,
+  // mass_out.
   explicit ThermoCsvWriter(const std::string& path, const std::vector<std::string>& walls = {}, int dim = 3,
                            bool flows = false);
   ~ThermoCsvWriter() override;
@@ -160,7 +162,7 @@ struct SummaryInfo {
   std::uint64_t particles = 0;
   std::uint64_t seed = 0;
   double end_time = 0.0;
-  bool flows = false;  // the scene has outlets
+  bool flows = false;  // the scene has inlets or outlets
 };
 
 template <int D>

@@ -5,6 +5,7 @@
 #include <algorithm>
 #include <cmath>
 #include <filesystem>
+#include <limits>
 #include <numbers>
 #include <optional>
 #include <stdexcept>
@@ -138,19 +139,19 @@ RunOutcome run_system(const Scene& scene, const System<D>& sys, const std::strin
   std::vector<std::string> wall_names;
   if (scene.output.wall_loads)
     for (const auto& w : sys.walls) wall_names.push_back(w.name);
-  const bool flows = !sys.outlets.empty();
+  const bool flows = !sys.outlets.empty() || !sys.inlets.empty();
   ThermoCsvWriter thermo(dir + "/thermo.csv", wall_names, D, flows);
   std::unique_ptr<EventLogWriter<D>> log;
   std::vector<Observer<D>*> observers{static_cast<Observer<D>*>(&thermo)};
   std::unique_ptr<OutflowCsvWriter<D>> outflow;
-  if (flows) {
+  if (!sys.outlets.empty()) {
     std::vector<std::string> names;
     for (const auto& o : sys.outlets) names.push_back(o.name);
     outflow = std::make_unique<OutflowCsvWriter<D>>(dir + "/outflow.csv", names);
     observers.push_back(outflow.get());
   }
   if (scene.output.events) {
-    log = std::make_unique<EventLogWriter<D>>(dir + "/events.bin", sys.size(),
+    log = std::make_unique<EventLogWriter<D>>(dir + "/events.bin", sys.size() + inlet_slots(sys.inlets, scene.end_time),
                                               sys.fixed.empty() ? kEventLogVersion : kEventLogVersionFixed);
     observers.push_back(log.get());
   }
@@ -194,6 +195,12 @@ RunOutcome run_system(const Scene& scene, const System<D>& sys, const std::strin
   out.to_hard = res.hybrid.to_hard;
   out.soft_at_end = res.hybrid.soft_at_end;
   out.slept = res.hybrid.slept;
+  for (const InletReport& r : res.inlets)
+    if (r.missed > 0)
+      out.warnings.push_back(fmt::format(
+          "inlet.{}: {} of the {} grains due found no free place in the region and were not inserted (the rate "
+          "could not be met: {} inserted)",
+          r.name, r.missed, r.due, r.inserted));
   return out;
 }
 
@@ -292,6 +299,14 @@ std::string describe(const Scene& scene, const System<D>& sys) {
   }
   for (const auto& o : sys.outlets)
     s += fmt::format("  [outlet.{}] {}{}\n", o.name, o.face >= 0 ? "open face: " : "", o.region.describe());
+  for (const auto& in : sys.inlets)
+    s += fmt::format("  [inlet.{}] {:.6g} grains/s of material.{} (radius {}{}) from t = {}{}{}: {} grains due by end_time\n",
+                     in.name, in.rate, sys.materials[static_cast<std::size_t>(in.material)].name, in.rmin,
+                     in.rmax > in.rmin ? fmt::format(" .. {}", in.rmax) : std::string(), in.start,
+                     std::isfinite(in.stop) ? fmt::format(" to {}", in.stop) : std::string(),
+                     in.count < std::numeric_limits<std::uint64_t>::max() ? fmt::format(", at most {}", in.count)
+                                                                          : std::string(),
+                     in.slots(scene.end_time));
   if (sys.gravity.squaredNorm() > 0.0)
     s += fmt::format("gravity      ({})\n", fmt::join(sys.gravity, ", "));
   if (scene.tc > 0.0) s += fmt::format("TC model     collisions within {} of a previous one are elastic\n", scene.tc);

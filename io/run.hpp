@@ -20,6 +20,8 @@ struct RunOutcome {
   double particle_steps_per_second = 0.0;
   // Hybrid: soft particle-steps, switches and the soft particles at the end.
   std::uint64_t soft_particle_steps = 0, to_soft = 0, to_hard = 0, soft_at_end = 0, slept = 0;
+  // Per inlet: "inlet.NAME: ..." for each whose rate could not be met (grains found no free place).
+  std::vector<std::string> warnings;
 };
 
 // The hybrid engine's settings of a scene (run.dt and the [hybrid] table).

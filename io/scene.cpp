@@ -9,6 +9,7 @@
 #include <fstream>
 #include <limits>
 #include <map>
+#include <random>
 #include <numbers>
 #include <sstream>
 
@@ -748,6 +749,112 @@ Outlet<D> read_outlet(const std::string& name, const TableReader& t, const Syste
   return o;
 }
 
+// An [inlet.NAME] table (engine/inlet.hpp): where, what, how fast. Checks the region against the
+// domain and the walls.
+template <int D>
+Inlet<D> read_inlet(const std::string& name, const TableReader& t, const System<D>& sys, std::uint64_t seed) {
+  Inlet<D> in;
+  in.name = name;
+  in.seed = seed;
+  const std::string type = t.string("type", {"box", "cylinder", "disk"});
+  t.allow({"type", "lower", "upper", "point", "axis", "normal", "radius", "length", "material", "grain_radius",
+           "rate", "mass_rate", "velocity", "spread", "count", "start", "stop"});
+  // Where.
+  auto forbid = [&](std::initializer_list<const char*> keys) {
+    for (const char* k : keys)
+      if (t.has(k)) t.fail(k, fmt::format("not a key of an inlet of type \"{}\"", type), t.need(k));
+  };
+  Vec<D> lo, hi;  // the region's bounding box
+  if (type == "box") {
+    forbid({"point", "axis", "normal", "radius", "length"});
+    in.shape = Inlet<D>::Shape::Box;
+    in.lower = to_vec<D>(t.numbers("lower", D));
+    in.upper = to_vec<D>(t.numbers("upper", D));
+    for (int k = 0; k < D; ++k)
+      if (!(in.upper[k] >= in.lower[k]))
+        t.fail("upper", fmt::format("must not be below lower along {} ({} < {})", kAxis[k], in.upper[k], in.lower[k]),
+               t.need("upper"));
+    lo = in.lower;
+    hi = in.upper;
+  } else {
+    in.shape = Inlet<D>::Shape::Cylinder;
+    in.point = to_vec<D>(t.numbers("point", D));
+    in.radius = t.number("radius", kPositive);
+    if (type == "cylinder") {
+      forbid({"lower", "upper", "normal"});
+      in.axis = read_direction<D>(t, "axis");
+      in.length = t.number("length", kPositive);
+    } else {
+      forbid({"lower", "upper", "axis", "length"});
+      in.axis = read_direction<D>(t, "normal");
+    }
+    for (int k = 0; k < D; ++k) {
+      const double e = in.radius * std::sqrt(std::max(0.0, 1.0 - in.axis[k] * in.axis[k]));
+      lo[k] = std::min(in.point[k], in.point[k] + in.length * in.axis[k]) - e;
+      hi[k] = std::max(in.point[k], in.point[k] + in.length * in.axis[k]) + e;
+    }
+  }
+  for (int k = 0; k < D; ++k)
+    if (lo[k] < sys.lower[k] - 1e-12 * (sys.upper[k] - sys.lower[k]) ||
+        hi[k] > sys.upper[k] + 1e-12 * (sys.upper[k] - sys.lower[k]))
+      fail(t.file(), t.path(),
+           fmt::format("the region reaches {} along {}, outside the domain [{}, {}]; move the inlet into the domain",
+                       lo[k] < sys.lower[k] ? lo[k] : hi[k], kAxis[k], sys.lower[k], sys.upper[k]));
+  // What: the grains' material and radius (a value or [rmin, rmax], drawn uniformly).
+  in.material = material_index(t, sys.materials);
+  const toml::node& rn = t.need("grain_radius");
+  if (rn.is_number()) {
+    in.rmin = in.rmax = t.as_number(rn, "grain_radius", kPositive);
+  } else {
+    const auto rr = t.numbers("grain_radius", 2);
+    if (!(rr[0] > 0.0)) t.fail("grain_radius", "rmin must be > 0", rn);
+    if (!(rr[1] >= rr[0])) t.fail("grain_radius", "rmax must be >= rmin", rn);
+    in.rmin = rr[0];
+    in.rmax = rr[1];
+  }
+  // How fast: grains/s, or kg/s over the mean grain mass of the radius distribution.
+  if (t.has("rate") == t.has("mass_rate"))
+    fail(t.file(), t.path(), "give exactly one of rate (grains/s) and mass_rate (kg/s)");
+  if (t.has("rate")) {
+    in.rate = t.number("rate", kPositive);
+  } else {
+    const double a = in.rmin, b = in.rmax;
+    // <R^D> of R uniform in [a, b].
+    const double mean_rd = b > a ? (std::pow(b, D + 1) - std::pow(a, D + 1)) / ((D + 1) * (b - a)) : std::pow(a, D);
+    const double mean_mass = sys.materials[static_cast<std::size_t>(in.material)].density * ball_volume<D>(1.0) * mean_rd;
+    in.rate = t.number("mass_rate", kPositive) / mean_mass;
+  }
+  if (t.has("velocity")) in.velocity = to_vec<D>(t.numbers("velocity", D));
+  in.spread = t.number_or("spread", 0.0, kNonNegative);
+  if (const auto c = t.integer_opt("count", Range{1.0})) in.count = static_cast<std::uint64_t>(*c);
+  in.start = t.number_or("start", 0.0, kNonNegative);
+  if (const auto s = t.number_opt("stop", kPositive)) {
+    if (!(*s > in.start)) t.fail("stop", fmt::format("must be after start = {}", in.start), t.need("stop"));
+    in.stop = *s;
+  }
+  // The region must leave room for a grain: not wholly inside a wall (sampled), each sample's
+  // nearest wall remembered for the message.
+  std::mt19937_64 rng(seed);
+  std::vector<int> blocked(sys.walls.size(), 0);
+  int free = 0;
+  for (int s = 0; s < 256 && free == 0; ++s) {
+    const Vec<D> x = in.sample_point(rng);
+    bool ok = true;
+    for (std::size_t w = 0; w < sys.walls.size(); ++w)
+      if (!(sys.walls[w].geometry().at(x, in.rmin, 0.0).gap > 0.0)) {
+        ++blocked[w];
+        ok = false;
+      }
+    free += ok;
+  }
+  if (free == 0 && !sys.walls.empty()) {
+    const auto w = static_cast<std::size_t>(std::max_element(blocked.begin(), blocked.end()) - blocked.begin());
+    fail(t.file(), t.path(), fmt::format("the region lies inside wall.{}: no grain of radius {} fits anywhere in it",
+                                         sys.walls[w].name, in.rmin));
+  }
+  return in;
+}
+
 // A bounded wall must lie within the domain (it would otherwise stand where no grain can be).
 template <int D>
 void check_walls_fit(const std::string& file, const System<D>& sys) {
@@ -812,6 +919,13 @@ void build_system(const TableReader& top, const TableReader& run, const fs::path
                                    kMaxWalls));
   check_walls_fit<D>(file, sys);
 
+  // [inlet.NAME] (each its own random stream: the scene's seed and its index)
+  {
+    std::uint64_t k = 0;
+    for (const auto& [name, t] : named_tables(top, "inlet"))
+      sys.inlets.push_back(read_inlet<D>(name, t, sys, scene.seed * 1000003ULL + 17 * ++k));
+  }
+
   // [outlet.NAME]
   for (const auto& [name, t] : named_tables(top, "outlet")) {
     sys.outlets.push_back(read_outlet<D>(name, t, sys));
@@ -828,7 +942,8 @@ void build_system(const TableReader& top, const TableReader& run, const fs::path
   // around everything placed so far. Within each kind groups go in file order; particle ids
   // always follow the file order of the groups.
   const auto group_tables = named_tables(top, "particles");
-  if (group_tables.empty()) fail(file, "particles", "missing (a scene needs at least one [particles.NAME] table)");
+  if (group_tables.empty() && sys.inlets.empty())
+    fail(file, "particles", "missing (a scene needs at least one [particles.NAME] table, or an inlet)");
   Builder<D> b{file, base_dir, sys, {}, {}};
   if (scene.method != Method::Edm) b.file_overlap = kSoftFileOverlap;
   for (std::size_t gi = 0; gi < group_tables.size(); ++gi) {
@@ -895,7 +1010,7 @@ Scene build_scene(toml::table& root, const std::string& file, const fs::path& ba
   Scene scene;
   scene.path = file;
   const TableReader top(scene.path, root, "");
-  top.allow({"run", "domain", "material", "particles", "wall", "outlet", "output", "hybrid"});
+  top.allow({"run", "domain", "material", "particles", "wall", "inlet", "outlet", "output", "hybrid"});
 
   // [run]
   const TableReader run = top.sub("run");

@@ -120,6 +120,7 @@ int cmd_run(const std::vector<std::string>& rest) {
   }
   const matep::RunOutcome out = matep::run_scene(scene, dir, progress);
   if (tty) fmt::print(stderr, "\r{:78}\r", "");
+  for (const auto& w : out.warnings) fmt::print(stderr, "warning: {}: {}\n", scene.path, w);
   if (scene.method == matep::Method::Edm)
     fmt::print("matep: {} collisions in {:.3f} s wall; output written to {}/\n", out.collisions,
                out.wall_seconds, out.out_dir);

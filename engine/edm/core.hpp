@@ -60,7 +60,8 @@ template <int D, class Queue, class Derived>
 class EdmCore {
  public:
   EdmCore(System<D>&& system, const EdmSettings& set, const std::vector<Observer<D>*>& obs)
-      : sys_(std::move(system)), set_(set), N_(static_cast<int>(sys_.size())) {
+      : sys_(std::move(system)), set_(set), N0_(static_cast<int>(sys_.size())),
+        N_(N0_ + static_cast<int>(inlet_slots(sys_.inlets, set.end_time))) {
     for (auto* o : obs) {
       if (!o) continue;
       observers_.push_back(o);
@@ -94,6 +95,8 @@ class EdmCore {
   void ext_result(RunResult<D>&) {}
   // Grain i has just been taken out by an outlet (its cell and queue entry are gone).
   void ext_removed(int) {}
+  // Grain i has just been inserted by an inlet at t (in its cell; predicted after this hook).
+  void ext_inserted(int, double) {}
 
   // Registers a system event; its id is the returned value (valid once init has run).
   int add_system_event(const char* name, std::function<bool(double)> fire) {
@@ -117,6 +120,28 @@ class EdmCore {
     sample_id_ = add_system_event("thermo", [this](double t) { return on_sample_event(t); });
     end_id_ = add_system_event("end", [](double) { return false; });
     snapshot_id_ = add_system_event("snapshot", [this](double t) { return on_snapshot_event(t); });
+    // Inlets: one system event each, and a particle slot per grain due (engine/inlet.hpp), absent
+    // until inserted (with the inlet's largest radius, so that the cells hold it).
+    next_id_ = N0_;
+    for (std::size_t k = 0; k < sys_.inlets.size(); ++k) {
+      const Inlet<D>& in = sys_.inlets[k];
+      clocks_.emplace_back(in, k, set_.end_time);
+      inlet_ids_.push_back(add_system_event("inlet", [this, k](double t) { return on_inlet_event(k, t); }));
+      for (std::uint64_t s = 0; s < clocks_.back().slots; ++s) {
+        sys_.x.push_back(sys_.lower);
+        sys_.v.push_back(Vec<D>::Zero());
+        sys_.radius.push_back(in.rmax);
+        sys_.material.push_back(in.material);
+        if (!sys_.w.empty()) sys_.w.push_back(Spin<D>::Zero());
+        if (!sys_.fixed.empty()) sys_.fixed.push_back(0);
+      }
+    }
+    if (n_fixed_ > 0) fixed_ = sys_.fixed;  // with the slots' flags
+    if (N_ > N0_) {
+      removed_.assign(static_cast<std::size_t>(N_), 0);
+      std::fill(removed_.begin() + N0_, removed_.end(), std::uint8_t{1});
+      absent_ = true;
+    }
 
     derived().ext_setup();
     // Copy the input into the engine's arrays one array at a time, releasing each input array
@@ -168,8 +193,8 @@ class EdmCore {
 
   // Whether i is a fixed grain (System::fixed): never predicted, never moved.
   bool is_fixed(int i) const { return n_fixed_ > 0 && fixed_[i] != 0; }
-  // Whether i has left through an outlet.
-  bool is_removed(int i) const { return grains_out_ > 0 && removed_[i] != 0; }
+  // Whether i is absent: it has left through an outlet, or an inlet has not inserted it yet.
+  bool is_removed(int i) const { return absent_ && removed_[i] != 0; }
   // Whether i flies between its events (its stored state may be extrapolated in time).
   bool flies(int i) const { return !is_fixed(i) && !is_removed(i) && derived().moved_by_events(i); }
 
@@ -184,7 +209,9 @@ class EdmCore {
     derived().ext_start();
     emit_sample(0.0, /*interval=*/0.0);
     for (int i = 0; i < N_; ++i)
-      if (!is_fixed(i) && derived().predicted(i)) predict(i, 0.0);
+      if (!is_fixed(i) && !is_removed(i) && derived().predicted(i)) predict(i, 0.0);
+    for (std::size_t k = 0; k < clocks_.size(); ++k)
+      if (clocks_[k].pending()) queue_->set(inlet_ids_[k], clocks_[k].next_time());
     if (set_.thermo_interval > 0.0 && set_.thermo_interval < set_.end_time * (1.0 - 1e-12))
       queue_->set(sample_id_, set_.thermo_interval);
     queue_->set(end_id_, set_.end_time);
@@ -255,7 +282,10 @@ class EdmCore {
     res.w = std::move(sys_.w);
     res.grains_out = grains_out_;
     res.mass_out = mass_out_;
-    if (grains_out_ > 0) keep_present(res, removed_);
+    res.grains_in = grains_in_;
+    res.mass_in = mass_in_;
+    for (const auto& c : clocks_) res.inlets.push_back({c.inlet->name, c.slots, c.inserted, c.missed});
+    if (absent_) keep_present(res, removed_);
     res.wall_seconds =
         std::chrono::duration<double>(std::chrono::steady_clock::now() - wall0).count();
     return res;
@@ -296,6 +326,7 @@ class EdmCore {
     head_.assign(grid_.cells(), -1);
     next_.assign(N_, -1);
     for (int i = 0; i < N_; ++i) {
+      if (is_removed(i)) continue;  // a slot an inlet fills later
       cold_[i].cell = grid_.coords(hot_[i].x);
       cell_insert(i);
     }
@@ -615,6 +646,7 @@ class EdmCore {
     ++cold_[i].counter;
     cold_[i].ev_t = cold_[i].cross_t = kNever;
     if (removed_.empty()) removed_.assign(static_cast<std::size_t>(N_), 0);
+    absent_ = true;
     removed_[i] = 1;
     ++grains_out_;
     const double m = mass(i);
@@ -630,6 +662,73 @@ class EdmCore {
     rec.v = hot_[i].v;
     if (!sys_.w.empty()) rec.w = sys_.w[i];
     for (auto* obs : observers_) obs->on_outflow(rec);
+  }
+
+  // Inlet k's grain due at t: a free place in its region (place_free), then the grain enters with
+  // the next id; the inlet's next grain is scheduled either way.
+  bool on_inlet_event(std::size_t k, double t) {
+    InletClock<D>& c = clocks_[k];
+    Vec<D> x, v;
+    double R = 0.0;
+    if (c.draw([&](Vec<D>& y, double r) { return place_free(y, r, t); }, x, R, v))
+      insert_particle(next_id_++, k, x, R, v, t);
+    if (c.pending()) queue_->set(inlet_ids_[k], c.next_time());
+    return true;
+  }
+
+  // Whether a grain of radius R centred at x (wrapped here on periodic axes) at time t lies inside
+  // the domain on its closed axes, outside every outlet, and clear of every wall and grain.
+  bool place_free(Vec<D>& x, double R, double t) const {
+    for (int k = 0; k < D; ++k) {
+      if (sys_.periodic[k]) x[k] = wrap_periodic(x[k], lo_[k], hi_[k]);
+      else if (x[k] - R < lo_[k] || x[k] + R > hi_[k]) return false;
+    }
+    for (const Outlet<D>& o : sys_.outlets)
+      if (o.region.inside(x)) return false;
+    for (const WallShape<D>* w : shapes_)
+      if (!(w->at(x, R, t).gap > 0.0)) return false;
+    bool free = true;
+    grid_.around(grid_.coords(x), [&](int lin, const Vec<D>& shift) {
+      for (int j = head_[lin]; j >= 0 && free; j = next_[j]) {
+        const Hot<D>& h = hot_[j];
+        const double dt = flies(j) ? t - h.t : 0.0;
+        const Vec<D> xj = h.x + h.v * dt + (0.5 * dt * dt) * g_;
+        const double s = R + h.R;
+        if ((x - xj - shift).squaredNorm() < s * s) free = false;
+      }
+    });
+    return free;
+  }
+
+  // Grain i (an absent slot) enters at x with radius R and velocity v at time t, from inlet k.
+  void insert_particle(int i, std::size_t k, const Vec<D>& x, double R, const Vec<D>& v, double t) {
+    const Inlet<D>& in = sys_.inlets[k];
+    Hot<D>& h = hot_[i];
+    h.x = x;
+    h.v = v;
+    h.t = t;
+    h.R = R;
+    cold_[i] = Cold{};
+    cold_[i].mat = in.material;
+    cold_[i].cell = grid_.coords(x);
+    if (!sys_.w.empty()) sys_.w[i].setZero();
+    removed_[i] = 0;
+    ++grains_in_;
+    const double m = mass(i);
+    mass_in_ += m;
+    cell_insert(i);
+    derived().ext_inserted(i, t);
+    if (derived().predicted(i)) predict(i, t);
+    if (observers_.empty()) return;
+    InflowRecord<D> rec;
+    rec.time = t;
+    rec.id = static_cast<std::uint32_t>(i);
+    rec.inlet = static_cast<std::uint32_t>(k);
+    rec.mass = m;
+    rec.radius = R;
+    rec.x = x;
+    rec.v = v;
+    for (auto* obs : observers_) obs->on_inflow(rec);
   }
 
   void collide_pair(int i, int j) {
@@ -855,7 +954,7 @@ class EdmCore {
       snap.mode.assign(N_, 0);
       for (int i = 0; i < N_; ++i) snap.mode[i] = is_fixed(i) ? 4 : 0;
     }
-    if (grains_out_ > 0) keep_present(snap, removed_);
+    if (absent_) keep_present(snap, removed_);
     for (auto* o : snapshot_observers_) o->on_snapshot(snap);
   }
 
@@ -888,12 +987,15 @@ class EdmCore {
     s.kinetic_energy = 0.5 * mv2;
     s.rotational_energy = rot;
     s.potential_energy = pe;
-    const int moving = N_ - n_fixed_ - static_cast<int>(grains_out_);  // fixed grains have no kinetic degrees of freedom
+    const int present = N0_ + static_cast<int>(grains_in_) - static_cast<int>(grains_out_);
+    const int moving = present - n_fixed_;  // fixed grains have no kinetic degrees of freedom
     s.temperature = moving > 0 ? mv2 / (D * moving) : 0.0;
     s.collisions = counts_.collisions();
-    s.grains = static_cast<std::uint64_t>(N_) - grains_out_;
+    s.grains = static_cast<std::uint64_t>(present);
     s.grains_out = grains_out_;
     s.mass_out = mass_out_;
+    s.grains_in = grains_in_;
+    s.mass_in = mass_in_;
     derived().ext_sample(s);
     // P V = N T + (1/(d dt)) sum_collisions r_ij . dp_i  (REFERENCES 2.3; Smallenburg's EDMD).
     // The kinetic part uses the mean of the kinetic energies at the two ends of the interval.
@@ -943,7 +1045,8 @@ class EdmCore {
 
   System<D> sys_;  // materials, walls, geometry (particle arrays released)
   EdmSettings set_;
-  int N_;
+  int N0_;  // particles at the start
+  int N_;   // particle slots: those at the start and one per grain the inlets have due
   std::optional<Queue> queue_;  // built once the input arrays are released
   std::vector<Observer<D>*> observers_, collision_observers_, snapshot_observers_;
   Vec<D> g_, lo_, hi_, L_;
@@ -962,9 +1065,16 @@ class EdmCore {
   };
   std::vector<OutletEvent> outlets_;
   std::array<int, 2 * D> face_outlet_{};
-  std::vector<std::uint8_t> removed_;  // per particle (allocated at the first removal)
+  std::vector<std::uint8_t> removed_;  // per particle: absent (allocated when some slot is)
+  bool absent_ = false;                // some slot is absent: removed_ is allocated
   std::uint64_t grains_out_ = 0;
   double mass_out_ = 0.0;
+  // Inlets: their schedules and system event ids, the next id to give, what has come in.
+  std::vector<InletClock<D>> clocks_;
+  std::vector<int> inlet_ids_;
+  int next_id_ = 0;
+  std::uint64_t grains_in_ = 0;
+  double mass_in_ = 0.0;
   double window_ = 0.0;
   double now_ = 0.0;
 

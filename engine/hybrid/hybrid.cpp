@@ -49,11 +49,27 @@ struct Skins {
   double capture = 0.0, list = 0.0;
 };
 constexpr double kListSkin = 0.1;  // soft neighbour-list skin, fraction of the smallest diameter
-Skins hybrid_skins(const std::vector<double>& radius, const SoftPlan& plan, const HybridSettings& hs, double h) {
-  double dmin = kNever;
-  for (double r : radius) dmin = std::min(dmin, 2.0 * r);
+// The smallest and largest diameters of a run: of the grains at the start and of those the inlets
+// insert (kNever and 0 when there are none).
+template <int D>
+std::pair<double, double> diameter_range(const System<D>& sys) {
+  double dmin = kNever, dmax = 0.0;
+  for (double r : sys.radius) {
+    dmin = std::min(dmin, 2.0 * r);
+    dmax = std::max(dmax, 2.0 * r);
+  }
+  for (const Inlet<D>& in : sys.inlets) {
+    dmin = std::min(dmin, 2.0 * in.rmin);
+    dmax = std::max(dmax, 2.0 * in.rmax);
+  }
+  return {dmin, dmax};
+}
+
+template <int D>
+Skins hybrid_skins(const System<D>& sys, const SoftPlan& plan, const HybridSettings& hs, double h) {
+  const double dmin = diameter_range(sys).first;
   Skins s;
-  s.capture = hs.skin * (radius.empty() ? 0.0 : dmin);
+  s.capture = hs.skin * (dmin < kNever ? dmin : 0.0);
   // The skin must cover the largest relative approach in one substep (two particles at the
   // largest expected impact speed each): no contact can begin between two capture checks.
   s.capture = std::max(s.capture, 4.0 * plan.impact_speed * h);
@@ -188,6 +204,20 @@ class HybridEngine final : public edm::EdmCore<D, CalendarQueue, HybridEngine<D>
     mode_[i] = kGone;
     iface_flag_[i] = 0;
   }
+  // A grain from an inlet enters hard, with its own mass; next to a soft grain it is an interface
+  // particle (captured at the next substep if within the skin).
+  void ext_inserted(int i, double) {
+    mode_[i] = kHard;
+    const double m = mass(i), R = hot_[i].R;
+    minv_[i] = 1.0 / m;
+    iinv_[i] = 1.0 / (inertia_factor<D>() * m * R * R);
+    switch_.forget(i);
+    last_contact_[i] = 0.0;
+    quiet_checks_[i] = 0;
+    for_neighbours(i, [&](int j, const Vec<D>&) {
+      if (mode_[j] == kSoft || mode_[j] == kAsleep) mark_interface(i);
+    });
+  }
 
   using PairEntry = soft::PairEntry<D>;  // owner i, partner j, constants ctab_[c], image shift sh
   struct WallEntry {
@@ -218,7 +248,7 @@ class HybridEngine final : public edm::EdmCore<D, CalendarQueue, HybridEngine<D>
     epsd_ = plan_.rolling_model == RollingModel::Epsd;
     rolling_ = plan_.rolling;
     pairs_.set_rolling(epsd_);
-    const Skins sk = hybrid_skins(sys_.radius, plan_, hs, h_);
+    const Skins sk = hybrid_skins(sys_, plan_, hs, h_);
     skin_ = sk.capture;
     lskin_ = sk.list;
     kstab_ = hs.stability;
@@ -238,6 +268,7 @@ class HybridEngine final : public edm::EdmCore<D, CalendarQueue, HybridEngine<D>
     uniform_ = N_ > 0;
     for (int i = 1; i < N_ && uniform_; ++i)
       uniform_ = sys_.material[i] == sys_.material[0] && sys_.radius[i] == sys_.radius[0];
+    for (const Inlet<D>& in : sys_.inlets) uniform_ = uniform_ && in.rmin == in.rmax;
     if (uniform_) {
       const int m = sys_.material[0];
       const double R = sys_.radius[0], M = sys_.mass(0);
@@ -275,6 +306,8 @@ class HybridEngine final : public edm::EdmCore<D, CalendarQueue, HybridEngine<D>
     switch_.reset(N_, switch_params_);
     mode_.assign(N_, kHard);
     for (const int i : fixed_list_) mode_[i] = kFixed;
+    for (int i = 0; i < N_; ++i)
+      if (this->is_removed(i)) mode_[i] = kGone;  // a slot an inlet fills later
     if (sleeping_) {
       fz_base_.assign(N_, Vec<D>::Zero());
       fz_mix_.assign(N_, Vec<D>::Zero());
@@ -1105,7 +1138,7 @@ class HybridEngine final : public edm::EdmCore<D, CalendarQueue, HybridEngine<D>
   // Overlapping particles (and particles overlapping a wall) at t = 0 start soft.
   void hybrid_start() {
     for (int i = 0; i < N_; ++i) {
-      if (mode_[i] == kFixed) continue;  // never soft (a moving grain overlapping it is)
+      if (mode_[i] == kFixed || mode_[i] == kGone) continue;  // never soft (a moving grain overlapping it is)
       bool over = false;
       for (const WallShape<D>* W : shapes_) over = over || W->at(hot_[i].x, hot_[i].R, 0.0).gap < 0.0;
       if (!over)
@@ -1444,10 +1477,9 @@ template <int D>
 SoftPlan hybrid_preflight(const System<D>& system, const HybridSettings& settings) {
   SoftPlan plan = plan_soft<D>(system);
   const double h = hybrid_substep(plan, settings);
-  double dmax = 0.0;
-  for (double r : system.radius) dmax = std::max(dmax, 2.0 * r);
+  const double dmax = diameter_range(system).second;
   check_periodic_axes<D>(system.lower, system.upper, system.periodic, dmax,
-                         hybrid_skins(system.radius, plan, settings, h).list);
+                         hybrid_skins(system, plan, settings, h).list);
   return plan;
 }
 

@@ -66,6 +66,9 @@ class TdmEngine {
   bool scan_outlets();
   void drop_gone();
   void set_ranges();
+  // ---- inlets ----
+  bool insert_due();
+  bool place_free(Vec<D>& x, double R, double t) const;
   // ---- diagnostics ----
   ThermoSample sample(double time);
   Snapshot<D> snapshot(double time) const;
@@ -164,7 +167,13 @@ class TdmEngine {
   std::vector<Outlet<D>> outlets_;
   std::vector<std::uint8_t> gone_;        // per particle in storage order: leaving at this step
   std::vector<std::uint8_t> removed_id_;  // per particle id: has left (empty until the first)
-  std::size_t N0_ = 0;                    // particles at the start (ids 0 .. N0_ - 1)
+  std::size_t N0_ = 0;                    // particle ids: those at the start, then one per grain due from the inlets
+  std::size_t n_built_ = 0;               // particles in the cells of the last rebuild (storage 0 .. n_built_ - 1)
+  int T_req_ = 1;                         // threads asked for
+  std::vector<InletClock<D>> clocks_;     // engine/inlet.hpp
+  std::uint32_t next_id_ = 0;
+  std::uint64_t grains_in_ = 0;
+  double mass_in_ = 0.0;
   std::uint64_t grains_out_ = 0;
   double mass_out_ = 0.0;
   double particle_steps_ = 0.0;
@@ -182,9 +191,17 @@ double largest_diameter(const std::vector<double>& radius) {
   return dmax;
 }
 
+// The largest diameter of the run: of the grains at the start and of those the inlets insert.
+template <int D>
+double largest_diameter(const System<D>& sys) {
+  double d = largest_diameter(sys.radius);
+  for (const Inlet<D>& in : sys.inlets) d = std::max(d, 2.0 * in.rmax);
+  return d;
+}
+
 template <int D>
 double skin_of(const System<D>& sys, const TdmSettings& set) {
-  return set.skin > 0.0 ? set.skin : 0.1 * largest_diameter(sys.radius);
+  return set.skin > 0.0 ? set.skin : 0.1 * largest_diameter(sys);
 }
 
 template <int D>
@@ -196,7 +213,7 @@ SoftPlan preflight(const System<D>& sys, const TdmSettings& set) {
         "run.dt: {} is above the stability limit {:.6g} of velocity Verlet for the stiffest contact "
         "({}, at impact speed {:.4g}); use run.dt <= {:.6g} (the default is {:.6g})",
         set.dt, plan.max_stable_dt, plan.limiting, plan.impact_speed, plan.max_stable_dt, plan.default_dt));
-  check_periodic_axes<D>(sys.lower, sys.upper, sys.periodic, largest_diameter(sys.radius), skin_of(sys, set));
+  check_periodic_axes<D>(sys.lower, sys.upper, sys.periodic, largest_diameter(sys), skin_of(sys, set));
   return plan;
 }
 
@@ -205,6 +222,15 @@ void TdmEngine<D>::setup() {
   N_ = sys_.size();
   N0_ = N_;
   outlets_ = sys_.outlets;
+  next_id_ = static_cast<std::uint32_t>(N_);
+  for (std::size_t k = 0; k < sys_.inlets.size(); ++k) {
+    clocks_.emplace_back(sys_.inlets[k], k, set_.end_time);
+    N0_ += clocks_.back().slots;
+  }
+  if (N0_ > N_) {  // the inlets' ids are absent until their grains come in
+    removed_id_.assign(N0_, 1);
+    std::fill(removed_id_.begin(), removed_id_.begin() + static_cast<std::ptrdiff_t>(N_), std::uint8_t{0});
+  }
   sys_.check_fixed();
   n_fixed_ = sys_.fixed_count();
   if (n_fixed_ > 0) fixed_ = sys_.fixed;
@@ -214,7 +240,7 @@ void TdmEngine<D>::setup() {
   const double n = std::ceil(set_.end_time / dt * (1.0 - 1e-12));
   dt_ = set_.end_time / std::max(1.0, n);
   hdt_ = 0.5 * dt_;
-  const double dmax = largest_diameter(sys_.radius);
+  const double dmax = largest_diameter(sys_);
   skin_ = skin_of(sys_, set_);
   half_skin2_ = 0.25 * skin_ * skin_;
   L_ = sys_.upper - sys_.lower;
@@ -253,6 +279,8 @@ void TdmEngine<D>::setup() {
 
   uniform_ = N_ > 0;
   for (std::size_t i = 1; i < N_ && uniform_; ++i) uniform_ = R_[i] == R_[0] && mat_[i] == mat_[0];
+  for (const Inlet<D>& in : sys_.inlets)
+    uniform_ = uniform_ && in.rmin == in.rmax && in.rmin == R_[0] && in.material == mat_[0];
   if (uniform_) {
     cpair_ = pair_contact(plan_, mat_[0], R_[0], m_[0], mat_[0], R_[0], m_[0]);
     cfixed_ = pair_contact(plan_, mat_[0], R_[0], m_[0], mat_[0], R_[0], kPlane);
@@ -280,7 +308,7 @@ void TdmEngine<D>::setup() {
 
   // Threads: contiguous particle ranges of at least kMinPerThread particles (below that, the
   // fork-join of a parallel region each step costs more than it saves).
-  T_ = set_.threads > 0 ? set_.threads : omp_get_max_threads();
+  T_req_ = set_.threads > 0 ? set_.threads : omp_get_max_threads();
   set_ranges();
   wlo_.resize(T_);
   whi_.resize(T_);
@@ -295,7 +323,7 @@ void TdmEngine<D>::setup() {
 // kMinPerThread particles each).
 template <int D>
 void TdmEngine<D>::set_ranges() {
-  T_ = std::max(1, std::min<int>(T_, static_cast<int>(N_ / kMinPerThread)));
+  T_ = std::max(1, std::min<int>(T_req_, static_cast<int>(N_ / kMinPerThread)));
   lo_.resize(T_);
   hi_.resize(T_);
   for (int t = 0; t < T_; ++t) {
@@ -318,7 +346,7 @@ bool TdmEngine<D>::scan_outlets() {
     for (std::size_t o = 0; o < outlets_.size(); ++o) {
       if (!outlets_[o].region.inside(x)) continue;
       if (gone_.empty()) gone_.assign(N_, 0);
-      if (removed_id_.empty()) removed_id_.assign(N0_, 0);
+      if (removed_id_.empty()) removed_id_.assign(N0_, 0);  // (with inlets: allocated at the start)
       gone_[i] = 1;
       removed_id_[id_[i]] = 1;
       any = true;
@@ -362,7 +390,87 @@ void TdmEngine<D>::drop_gone() {
   id_.resize(N_);
   if (n_fixed_ > 0) fixed_.resize(N_);
   gone_.assign(N_, 0);
-  set_ranges();
+}
+
+// After a step: the inlets' grains due by now enter (engine/inlet.hpp) where place_free finds room,
+// in flight with the velocity drawn (between steps v holds v(t - h/2) = v - h/2 g, as for a grain
+// that has flown freely). Returns whether any did (the lists then need a rebuild).
+template <int D>
+bool TdmEngine<D>::insert_due() {
+  const double t = static_cast<double>(steps_) * dt_;
+  bool any = false;
+  for (std::size_t k = 0; k < clocks_.size(); ++k) {
+    InletClock<D>& c = clocks_[k];
+    const Inlet<D>& in = sys_.inlets[k];
+    while (c.pending() && c.next_time() <= t) {
+      Vec<D> x, v;
+      double R = 0.0;
+      if (!c.draw([&](Vec<D>& y, double r) { return place_free(y, r, t); }, x, R, v)) continue;
+      const double m = sys_.materials[static_cast<std::size_t>(in.material)].density * ball_volume<D>(R);
+      x_.push_back(x);
+      v_.push_back(v - hdt_ * g_);
+      acc_.push_back(g_);
+      f_.push_back(Vec<D>::Zero());
+      w_.push_back(Spin<D>::Zero());
+      alpha_.push_back(Spin<D>::Zero());
+      tq_.push_back(Spin<D>::Zero());
+      R_.push_back(R);
+      m_.push_back(m);
+      minv_.push_back(1.0 / m);
+      iinv_.push_back(1.0 / (inertia_factor<D>() * m * R * R));
+      mat_.push_back(in.material);
+      id_.push_back(next_id_);
+      if (n_fixed_ > 0) fixed_.push_back(0);
+      if (!gone_.empty()) gone_.push_back(0);
+      removed_id_[next_id_] = 0;
+      ++N_;
+      ++grains_in_;
+      mass_in_ += m;
+      any = true;
+      InflowRecord<D> rec;
+      rec.time = t;
+      rec.id = next_id_++;
+      rec.inlet = static_cast<std::uint32_t>(k);
+      rec.mass = m;
+      rec.radius = R;
+      rec.x = x;
+      rec.v = v;
+      for (auto* ob : obs_) ob->on_inflow(rec);
+    }
+  }
+  return any;
+}
+
+// Whether a grain of radius R centred at x (wrapped on periodic axes) at step time t is inside the
+// domain on its closed axes, outside every outlet, and clear of every wall and grain: those of the
+// last rebuild's cells around x (they have moved less than half the skin since, which the cells'
+// width covers) and those inserted since.
+template <int D>
+bool TdmEngine<D>::place_free(Vec<D>& x, double R, double t) const {
+  for (int k = 0; k < D; ++k) {
+    if (sys_.periodic[k]) x[k] = wrap_periodic(x[k], sys_.lower[k], sys_.upper[k]);
+    else if (x[k] - R < sys_.lower[k] || x[k] + R > sys_.upper[k]) return false;
+  }
+  for (const Outlet<D>& o : outlets_)
+    if (o.region.inside(x)) return false;
+  for (const WallShape<D>* w : shapes_)
+    if (!(w->at(x, R, t).gap > 0.0)) return false;
+  auto clear = [&](std::size_t j, const Vec<D>& shift) {
+    const double s = R + R_[j];
+    return (x - x_[j] - shift).squaredNorm() >= s * s;
+  };
+  bool free = true;
+  if (n_built_ > 0)
+    grid_.around(grid_.coords(x), [&](int l, const Vec<D>& shift) {
+      for (std::uint32_t j = cell_start_[l]; j < cell_start_[l + 1] && free; ++j) free = clear(j, shift);
+    });
+  for (std::size_t j = n_built_; j < N_ && free; ++j) {
+    Vec<D> d = x - x_[j];  // the nearest image
+    for (int k = 0; k < D; ++k)
+      if (sys_.periodic[k]) d[k] -= L_[k] * std::round(d[k] / L_[k]);
+    free = clear(j, x - x_[j] - d);
+  }
+  return free;
 }
 
 template <int D>
@@ -372,7 +480,7 @@ void TdmEngine<D>::rebuild() {
   // 1. Remember touching contacts by particle ids (engine/soft/springs.hpp).
   soft::SpringMemory<D>& mem = springs_;
   mem.clear();
-  for (std::size_t i = 0; i < N_ && !off_.empty(); ++i)
+  for (std::size_t i = 0; i < n_built_ && !off_.empty(); ++i)  // the rows of the last build (grains inserted since come after)
     for (std::uint32_t e = off_[i]; e < off_[i + 1]; ++e)
       if (touch_[e])
         mem.remember_pair(id_[i], id_[nb_[e]], rot_ ? xi_[e] : Vec<D>::Zero(), mr_.empty() ? Spin<D>::Zero() : mr_[e]);
@@ -382,6 +490,8 @@ void TdmEngine<D>::rebuild() {
                         wl_mr_.empty() ? Spin<D>::Zero() : wl_mr_[e]);
   mem.sort();
   if (!gone_.empty() && std::find(gone_.begin(), gone_.end(), 1) != gone_.end()) drop_gone();
+  set_ranges();
+  n_built_ = N_;
 
   // 2. Wrap periodic axes, check the state, bin into cells.
   const std::size_t ncell = static_cast<std::size_t>(grid_.cells());
@@ -773,6 +883,8 @@ ThermoSample TdmEngine<D>::sample(double time) {
   s.grains = N_;
   s.grains_out = grains_out_;
   s.mass_out = mass_out_;
+  s.grains_in = grains_in_;
+  s.mass_in = mass_in_;
   const std::size_t moving = N_ - n_fixed_;  // fixed grains have no kinetic degrees of freedom
   s.temperature = moving > 0 ? mv2 / (D * static_cast<double>(moving)) : 0.0;
   s.collisions = pair_begun_ + wall_begun_;
@@ -808,7 +920,7 @@ Snapshot<D> TdmEngine<D>::snapshot(double time) const {
     s.mode.assign(N0_, 0);
     for (std::size_t i = 0; i < N_; ++i) s.mode[id_[i]] = is_fixed(i) ? 4 : 0;
   }
-  if (grains_out_ > 0) keep_present(s, removed_id_);
+  if (!removed_id_.empty()) keep_present(s, removed_id_);
   return s;
 }
 
@@ -818,7 +930,8 @@ RunResult<D> TdmEngine<D>::run() {
   setup();
   RunResult<D> res;
   res.method = Method::Tdm;
-  const std::uint64_t nsteps = N_ == 0 ? 0 : static_cast<std::uint64_t>(std::llround(set_.end_time / dt_));
+  const std::uint64_t nsteps =
+      N_ == 0 && clocks_.empty() ? 0 : static_cast<std::uint64_t>(std::llround(set_.end_time / dt_));
   auto step_of = [&](double interval, std::uint64_t k) {
     return static_cast<std::uint64_t>(std::llround(static_cast<double>(k) * interval / dt_));
   };
@@ -872,6 +985,7 @@ RunResult<D> TdmEngine<D>::run() {
     bool moved = false;
     for (const auto& a : acc_t_) moved = moved || a.moved;
     if (!outlets_.empty() && scan_outlets()) moved = true;
+    if (!clocks_.empty() && insert_due()) moved = true;
     // A turning wall sweeps towards the grains too: together with their half skin, half the skin.
     if (sweep_ > 0.0 && sweep_ * static_cast<double>(steps_ - build_step_) * dt_ > 0.5 * skin_) moved = true;
     if (moved && status_ == "ok") rebuild();
@@ -879,7 +993,8 @@ RunResult<D> TdmEngine<D>::run() {
       for (auto* o : obs_) o->on_progress(steps_ * dt_, steps_);
   };
 
-  if (N_ > 0) {
+  if (!clocks_.empty()) insert_due();  // the grains due at t = 0
+  if (N_ > 0 || !clocks_.empty()) {
     rebuild();
     if (status_ == "ok") {
       // Forces at t = 0 give a(0) only: contacts that exist at t = 0 keep their springs unstretched.
@@ -940,6 +1055,9 @@ RunResult<D> TdmEngine<D>::run() {
   res.radius = std::move(last.radius);
   res.grains_out = grains_out_;
   res.mass_out = mass_out_;
+  res.grains_in = grains_in_;
+  res.mass_in = mass_in_;
+  for (const auto& c : clocks_) res.inlets.push_back({c.inlet->name, c.slots, c.inserted, c.missed});
   res.max_overlap = max_abs_;
   res.max_overlap_relative = max_rel_;
   SoftStats& s = res.soft;

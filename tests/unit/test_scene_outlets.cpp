@@ -196,11 +196,13 @@ TEST(SceneOutlets, OutputsAgreeWithEachOther) {
     }
     const auto thermo = read_csv(out / "thermo.csv");
     const auto& h = thermo[0];
-    ASSERT_GE(h.size(), 12u);
-    EXPECT_EQ(std::vector<std::string>(h.end() - 3, h.end()),
-              (std::vector<std::string>{"grains", "grains_out", "mass_out"}));
-    for (std::size_t k = 1; k < thermo.size(); ++k)
-      EXPECT_EQ(std::stoul(thermo[k][h.size() - 3]) + std::stoul(thermo[k][h.size() - 2]), 40u);
+    ASSERT_GE(h.size(), 14u);
+    EXPECT_EQ(std::vector<std::string>(h.end() - 5, h.end()),
+              (std::vector<std::string>{"grains", "grains_in", "mass_in", "grains_out", "mass_out"}));
+    for (std::size_t k = 1; k < thermo.size(); ++k) {
+      EXPECT_EQ(thermo[k][h.size() - 4], "0");  // no inlets
+      EXPECT_EQ(std::stoul(thermo[k][h.size() - 5]) + std::stoul(thermo[k][h.size() - 2]), 40u);
+    }
     EXPECT_EQ(std::stoul(thermo.back()[h.size() - 2]), gone.size());
     const auto final_state = read_csv(out / "final_state.csv");
     EXPECT_EQ(final_state.size() - 1 + gone.size(), 40u);

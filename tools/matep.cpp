@@ -44,7 +44,7 @@ const char* kUsage =
     "          stats   counts by kind, time span, collision rate in N time bins (default 10),\n"
     "                  busiest particle, largest impact speed, min / max / mean e\n"
     "          filter  writes the records with from <= time <= to, i or j (pair) in --ids and\n"
-    "                  a kind among --kind (pair, wall, soft, hard, outflow; repeatable) in the same\n"
+    "                  a kind among --kind (pair, wall, soft, hard, outflow, inflow; repeatable) in the same\n"
     "                  binary format, or as CSV with --csv or a FILE ending in .csv\n"
     "          verify  replays every collision: momentum, normal velocity -e, tangential\n"
     "                  velocity and spins unchanged, energy loss (1-e^2) m* u_n^2/2, relative\n"

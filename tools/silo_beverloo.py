@@ -1,0 +1,199 @@
+#!/usr/bin/python3
+"""Silo discharge against Beverloo's law: W = C rho_b sqrt(g) (D - k d)^(5/2).
+
+  tools/silo_beverloo.py [--matep build/matep] [--sizes 4,5,6,7,8] [--methods tdm,hybrid]
+                         [--end 1.0] [--window 0.2,1.0] [--threads 1] [--out charts] [--plot-only]
+
+Starts from the shipped bed (cases/silo_bed.csv, the bed cases/silo_fill.toml settles; --fill runs
+that scene again and starts from its final state), then for each orifice diameter D (in grain diameters d) and method runs cases/silo_discharge.toml with
+wall.floor.hole.radius = D d / 2 to --end seconds. The mass flow rate W of a run is the least-squares
+slope of the cumulative mass in outflow.csv against time over --window (the start-up transient
+excluded; the bin stays more than one diameter full), its uncertainty the spread of the slopes of
+the window's four quarters over sqrt(4). The rate of the window's first half against its second
+tests that W does not depend on the fill height (Janssen).
+
+Beverloo (REFERENCES sec. 7): W^(2/5) = (C rho_b sqrt(g))^(2/5) (D - k d) is a straight line in D;
+the least-squares line through the TDM points gives k from its intercept and C from its slope, with
+their standard errors from the fit's covariance. rho_b is the settled bed's bulk density (grains
+between z = 2 cm and 12 cm in the bin). Writes OUT/silo_beverloo.csv (one row per run) and
+OUT/silo_beverloo.png (W^(2/5) against D, with the fit), and prints C, k, the residuals and the
+hybrid's W and wall time against TDM's.
+"""
+from __future__ import annotations
+
+import argparse
+import csv
+import math
+import statistics
+import sys
+from pathlib import Path
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+from matep_runs import import_pyplot, run_matep, write_csv  # noqa: E402
+
+ROOT = Path(__file__).resolve().parent.parent
+D_GRAIN, R_BIN, G, RHO = 0.005, 0.05, 9.81, 2500.0  # cases/silo_fill.toml
+
+
+def slope(ts, ms):
+    n = len(ts)
+    tm, mm = sum(ts) / n, sum(ms) / n
+    stt = sum((t - tm) ** 2 for t in ts)
+    return sum((t - tm) * (m - mm) for t, m in zip(ts, ms)) / stt
+
+
+def flow_rate(outflow: Path, t0: float, t1: float):
+    """W over [t0, t1] from the cumulative mass, its error, and W of the first and second halves."""
+    ts, ms, cum = [], [], 0.0
+    with open(outflow) as f:
+        for r in csv.DictReader(f):
+            cum += float(r["mass"])
+            t = float(r["time"])
+            if t0 <= t <= t1:
+                ts.append(t)
+                ms.append(cum)
+    if len(ts) < 8:
+        return math.nan, math.nan, math.nan, math.nan
+    W = slope(ts, ms)
+
+    def part(a, b):
+        sel = [(t, m) for t, m in zip(ts, ms) if a <= t <= b]
+        return slope([s[0] for s in sel], [s[1] for s in sel]) if len(sel) >= 4 else math.nan
+
+    q = (t1 - t0) / 4
+    quarters = [part(t0 + i * q, t0 + (i + 1) * q) for i in range(4)]
+    err = statistics.stdev(quarters) / 2 if all(math.isfinite(x) for x in quarters) else math.nan
+    return W, err, part(t0, 0.5 * (t0 + t1)), part(0.5 * (t0 + t1), t1)
+
+
+def bulk_density(state: Path) -> float:
+    m = 0.0
+    with open(state) as f:
+        for r in csv.DictReader(f):
+            if 0.02 <= float(r["z"]) <= 0.12:
+                R = float(r["radius"])
+                m += RHO * 4.0 / 3.0 * math.pi * R ** 3
+    return m / (math.pi * R_BIN ** 2 * 0.10)
+
+
+def linfit(xs, ys):
+    """y = a x + b: a, b and their standard errors."""
+    n = len(xs)
+    xm, ym = sum(xs) / n, sum(ys) / n
+    sxx = sum((x - xm) ** 2 for x in xs)
+    a = sum((x - xm) * (y - ym) for x, y in zip(xs, ys)) / sxx
+    b = ym - a * xm
+    s2 = sum((y - a * x - b) ** 2 for x, y in zip(xs, ys)) / max(n - 2, 1)
+    sa = math.sqrt(s2 / sxx)
+    sb = math.sqrt(s2 * (1.0 / n + xm * xm / sxx))
+    cov = -xm * s2 / sxx
+    return a, b, sa, sb, cov
+
+
+def beverloo(rows, rho_b):
+    pts = sorted((float(r["D_over_d"]), float(r["W"])) for r in rows if r["method"] == "tdm" and float(r["W"]) > 0)
+    if len(pts) < 3:
+        return None
+    xs = [p[0] * D_GRAIN for p in pts]
+    ys = [p[1] ** 0.4 for p in pts]
+    a, b, sa, sb, cov = linfit(xs, ys)
+    k = -b / (a * D_GRAIN)
+    # k = -b / (a d): first-order error propagation with the covariance of a and b.
+    dk_da, dk_db = b / (a * a * D_GRAIN), -1.0 / (a * D_GRAIN)
+    sk = math.sqrt(dk_da ** 2 * sa ** 2 + dk_db ** 2 * sb ** 2 + 2 * dk_da * dk_db * cov)
+    C = a ** 2.5 / (rho_b * math.sqrt(G))
+    sC = 2.5 * C * sa / a
+    resid = [(C * rho_b * math.sqrt(G) * max(x - k * D_GRAIN, 0.0) ** 2.5 - w) / w for x, (_, w) in zip(xs, pts)]
+    return {"C": C, "sC": sC, "k": k, "sk": sk, "a": a, "b": b, "resid": resid, "pts": pts}
+
+
+def plot(rows, fit, png: Path):
+    plt = import_pyplot()
+    fig, ax = plt.subplots(figsize=(6.5, 4.5))
+    for method, style in (("tdm", "o"), ("hybrid", "s")):
+        pts = sorted((float(r["D_over_d"]), float(r["W"]) ** 0.4) for r in rows if r["method"] == method)
+        if pts:
+            ax.plot([p[0] for p in pts], [p[1] for p in pts], style, mfc="none" if method == "hybrid" else None,
+                    label=method.upper() if method == "tdm" else "hybrid")
+    if fit:
+        x0, x1 = fit["k"], max(p[0] for p in fit["pts"]) + 0.5
+        ax.plot([x0, x1], [fit["a"] * x * D_GRAIN + fit["b"] for x in (x0, x1)], "k-", lw=0.8,
+                label=f"Beverloo fit: C = {fit['C']:.3f} ± {fit['sC']:.3f}, k = {fit['k']:.2f} ± {fit['sk']:.2f}")
+    ax.set_xlim(left=0)
+    ax.set_ylim(bottom=0)
+    ax.set_xlabel("orifice diameter D / d")
+    ax.set_ylabel("W^(2/5)  (kg/s)^(2/5)")
+    ax.set_title("Silo discharge (cases/silo_discharge.toml)")
+    ax.legend(fontsize=8)
+    fig.tight_layout()
+    fig.savefig(png, dpi=110)
+
+
+def main() -> int:
+    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("--matep", default=str(ROOT / "build" / "matep"))
+    ap.add_argument("--sizes", default="4,5,6,7,8")
+    ap.add_argument("--methods", default="tdm,hybrid")
+    ap.add_argument("--end", type=float, default=1.0)
+    ap.add_argument("--window", default="0.2,1.0")
+    ap.add_argument("--threads", type=int, default=1)
+    ap.add_argument("--out", default=str(ROOT / "charts"))
+    ap.add_argument("--runs", default=str(ROOT / "out" / "silo_beverloo"), help="folder for the runs' outputs")
+    ap.add_argument("--fill", action="store_true", help="settle the bed again (cases/silo_fill.toml)")
+    ap.add_argument("--plot-only", action="store_true")
+    a = ap.parse_args()
+    out = Path(a.out)
+    out.mkdir(parents=True, exist_ok=True)
+    csv_path, png_path = out / "silo_beverloo.csv", out / "silo_beverloo.png"
+    t0, t1 = (float(x) for x in a.window.split(","))
+    bed = ROOT / "cases" / "silo_bed.csv"
+    if a.fill:
+        fill = Path(a.runs) / "fill"
+        run = run_matep(a.matep, ROOT / "cases" / "silo_fill.toml", {"run.threads": a.threads}, fill)
+        if run.status != "ok":
+            print(f"silo fill: {run.status} {run.message}", file=sys.stderr)
+            return 1
+        bed = fill / "final_state.csv"
+    rho_b = bulk_density(bed)
+    rows = []
+    if a.plot_only:
+        with open(csv_path) as f:
+            rows = list(csv.DictReader(f))
+    else:
+        for s in (float(x) for x in a.sizes.split(",")):
+            for method in a.methods.split(","):
+                run = run_matep(a.matep, ROOT / "cases" / "silo_discharge.toml",
+                                {"run.method": method, "run.end_time": a.end, "run.threads": a.threads,
+                                 "wall.floor.hole.radius": 0.5 * s * D_GRAIN,
+                                 "particles.bed.file": str(bed)},
+                                Path(a.runs) / f"{method}_D{s:g}")
+                if run.summary is None or run.status != "ok":
+                    print(f"D = {s:g} d {method}: {run.status} {run.message}", file=sys.stderr)
+                    continue
+                W, err, W1, W2 = flow_rate(Path(run.out_dir) / "outflow.csv", t0, t1)
+                rows.append({"method": method, "D_over_d": s, "W": W, "W_err": err, "W_first_half": W1,
+                             "W_second_half": W2, "grains_out": run.summary["outflow"]["grains"],
+                             "wall_seconds": run.summary["wall_seconds"], "rho_b": rho_b})
+                print(f"D = {s:g} d {method}: W = {W:.5g} +- {err:.2g} kg/s (halves {W1:.4g}, {W2:.4g}), "
+                      f"{run.summary['outflow']['grains']} grains out, {run.summary['wall_seconds']:.1f} s wall",
+                      flush=True)
+        write_csv(csv_path, ["method", "D_over_d", "W", "W_err", "W_first_half", "W_second_half", "grains_out",
+                             "wall_seconds", "rho_b"], rows)
+    fit = beverloo(rows, rho_b)
+    print(f"bulk density of the settled bed: {rho_b:.1f} kg/m^3")
+    if fit:
+        print(f"Beverloo (TDM): C = {fit['C']:.3f} +- {fit['sC']:.3f}, k = {fit['k']:.2f} +- {fit['sk']:.2f}; "
+              f"residuals {', '.join(f'{100 * r:+.1f}%' for r in fit['resid'])}")
+    for s in sorted({float(r["D_over_d"]) for r in rows}):
+        by = {r["method"]: r for r in rows if float(r["D_over_d"]) == s}
+        if "tdm" in by and "hybrid" in by:
+            wt, wh = float(by["tdm"]["W"]), float(by["hybrid"]["W"])
+            tt, th = float(by["tdm"]["wall_seconds"]), float(by["hybrid"]["wall_seconds"])
+            print(f"D = {s:g} d: hybrid W / TDM W = {wh / wt:.4f}, hybrid wall time / TDM = {th / tt:.3f}")
+    plot(rows, fit, png_path)
+    print(f"wrote {csv_path} and {png_path}")
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

@@ -104,6 +104,12 @@ std::uint64_t inlet_slots(const std::vector<Inlet<D>>& inlets, double end_time) 
   return n;
 }
 
+// What a run reports per inlet.
+struct InletReport {
+  std::string name;
+  std::uint64_t due = 0, inserted = 0, missed = 0;
+};
+
 // One inlet's schedule in a run: the next grain due, its random stream, and the figures reported.
 template <int D>
 struct InletClock {
@@ -115,6 +121,7 @@ struct InletClock {
   InletClock(const Inlet<D>& in, std::size_t index, double end_time)
       : inlet(&in), slots(in.slots(end_time)), rng(in.seed * 0x9e3779b97f4a7c15ULL + index + 1) {}
   bool pending() const { return next < slots; }
+  InletReport report() const { return {inlet->name, slots, inserted, missed}; }
   double next_time() const { return inlet->slot_time(next); }
 
   // Draws grain `next`: its radius and velocity, then up to kAttempts places until free(x, R) holds.
@@ -136,10 +143,5 @@ struct InletClock {
   }
 };
 
-// What a run reports per inlet.
-struct InletReport {
-  std::string name;
-  std::uint64_t due = 0, inserted = 0, missed = 0;
-};
 
 }  // namespace matep

@@ -6,6 +6,7 @@
 #include <vector>
 
 #include "contact/vec.hpp"
+#include "engine/result.hpp"
 
 namespace matep {
 
@@ -107,32 +108,5 @@ class Observer {
   // Called every few thousand events with the simulated time and the events so far.
   virtual void on_progress(double /*time*/, std::uint64_t /*events*/) {}
 };
-
-// Keeps the rows of a snapshot whose particle is present (gone[k] == 0 for particle k, in id
-// order; gone empty: all present), filling its ids.
-template <int D>
-void keep_present(Snapshot<D>& s, const std::vector<std::uint8_t>& gone) {
-  if (gone.empty()) return;
-  const std::size_t n = s.x.size();
-  std::size_t m = 0;
-  s.id.clear();
-  for (std::size_t k = 0; k < n; ++k) {
-    if (gone[k]) continue;
-    s.id.push_back(static_cast<std::uint32_t>(k));
-    s.x[m] = s.x[k];
-    s.v[m] = s.v[k];
-    if (!s.w.empty()) s.w[m] = s.w[k];
-    s.radius[m] = s.radius[k];
-    if (!s.mode.empty()) s.mode[m] = s.mode[k];
-    if (!s.cluster.empty()) s.cluster[m] = s.cluster[k];
-    ++m;
-  }
-  s.x.resize(m);
-  s.v.resize(m);
-  if (!s.w.empty()) s.w.resize(m);
-  s.radius.resize(m);
-  if (!s.mode.empty()) s.mode.resize(m);
-  if (!s.cluster.empty()) s.cluster.resize(m);
-}
 
 }  // namespace matep

@@ -106,29 +106,36 @@ struct RunResult {
   std::vector<InletReport> inlets;    // per inlet: grains due, inserted and missed (no free place)
 };
 
-// Keeps the final-state rows of the grains present (gone[k] == 0 for particle k, in id order;
-// gone empty: all present), filling res.id.
-template <int D>
-void keep_present(RunResult<D>& r, const std::vector<std::uint8_t>& gone) {
+// Keeps the rows of a per-particle state (a RunResult's final state, a Snapshot) whose particle is
+// present (gone[k] == 0 for particle k, in id order; gone empty: all present), filling its ids.
+template <class State>
+void keep_present(State& s, const std::vector<std::uint8_t>& gone) {
   if (gone.empty()) return;
-  const std::size_t n = r.x.size();
   std::size_t m = 0;
-  r.id.clear();
-  for (std::size_t k = 0; k < n; ++k) {
+  auto keep = [&](auto& a, std::size_t k) {
+    if (!a.empty()) a[m] = a[k];
+  };
+  auto cut = [&](auto& a) {
+    if (!a.empty()) a.resize(m);
+  };
+  s.id.clear();
+  for (std::size_t k = 0; k < s.x.size(); ++k) {
     if (gone[k]) continue;
-    r.id.push_back(static_cast<std::uint32_t>(k));
-    r.x[m] = r.x[k];
-    r.v[m] = r.v[k];
-    if (!r.w.empty()) r.w[m] = r.w[k];
-    r.radius[m] = r.radius[k];
-    if (!r.mode.empty()) r.mode[m] = r.mode[k];
+    s.id.push_back(static_cast<std::uint32_t>(k));
+    keep(s.x, k);
+    keep(s.v, k);
+    keep(s.w, k);
+    keep(s.radius, k);
+    keep(s.mode, k);
+    if constexpr (requires { s.cluster; }) keep(s.cluster, k);
     ++m;
   }
-  r.x.resize(m);
-  r.v.resize(m);
-  if (!r.w.empty()) r.w.resize(m);
-  r.radius.resize(m);
-  if (!r.mode.empty()) r.mode.resize(m);
+  cut(s.x);
+  cut(s.v);
+  cut(s.w);
+  cut(s.radius);
+  cut(s.mode);
+  if constexpr (requires { s.cluster; }) cut(s.cluster);
 }
 
 }  // namespace matep

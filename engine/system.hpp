@@ -2,6 +2,7 @@
 // initial particle state. io/ builds it from a scene file; tests build it directly.
 #pragma once
 
+#include <algorithm>
 #include <array>
 #include <cmath>
 #include <cstdint>
@@ -10,6 +11,7 @@
 #include <numbers>
 #include <optional>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "contact/outlet.hpp"
@@ -17,6 +19,7 @@
 #include "contact/restitution.hpp"
 #include "contact/vec.hpp"
 #include "contact/wall.hpp"
+#include "engine/grid.hpp"
 #include "engine/inlet.hpp"
 
 namespace matep {
@@ -93,6 +96,45 @@ struct System {
   std::vector<std::uint8_t> fixed;
 
   std::size_t size() const { return x.size(); }
+  // The smallest and largest radius of the run: of the grains at the start and of those the inlets
+  // insert (infinity and 0 when there are none).
+  std::pair<double, double> radius_range() const {
+    double lo = std::numeric_limits<double>::infinity(), hi = 0.0;
+    for (const double r : radius) {
+      lo = std::min(lo, r);
+      hi = std::max(hi, r);
+    }
+    for (const Inlet<D>& in : inlets) {
+      lo = std::min(lo, in.rmin);
+      hi = std::max(hi, in.rmax);
+    }
+    return {lo, hi};
+  }
+  // x wrapped into the domain along its periodic axes (engine/grid.hpp wrap_periodic).
+  Vec<D> wrapped(Vec<D> x) const {
+    for (int k = 0; k < D; ++k)
+      if (periodic[k]) x[k] = wrap_periodic(x[k], lower[k], upper[k]);
+    return x;
+  }
+  // The outlet (index into outlets) whose region holds x (wrapped on the periodic axes), or -1.
+  int outlet_at(const Vec<D>& x) const {
+    const Vec<D> y = wrapped(x);
+    for (std::size_t o = 0; o < outlets.size(); ++o)
+      if (outlets[o].region.inside(y)) return static_cast<int>(o);
+    return -1;
+  }
+  // Whether a grain of radius R centred at x (wrapped here on the periodic axes) at time t lies
+  // inside the domain on its closed axes, in no outlet, and clear of every wall: where an inlet may
+  // put it (the engines then check the grains).
+  bool clear_of_boundaries(Vec<D>& x, double R, double t) const {
+    x = wrapped(x);
+    for (int k = 0; k < D; ++k)
+      if (!periodic[k] && (x[k] - R < lower[k] || x[k] + R > upper[k])) return false;
+    if (outlet_at(x) >= 0) return false;
+    for (const Wall<D>& w : walls)
+      if (!(w.geometry().at(x, R, t).gap > 0.0)) return false;
+    return true;
+  }
   bool is_fixed(std::size_t i) const { return !fixed.empty() && fixed[i] != 0; }
   std::size_t fixed_count() const {
     std::size_t n = 0;

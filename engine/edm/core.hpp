@@ -284,7 +284,7 @@ class EdmCore {
     res.mass_out = mass_out_;
     res.grains_in = grains_in_;
     res.mass_in = mass_in_;
-    for (const auto& c : clocks_) res.inlets.push_back({c.inlet->name, c.slots, c.inserted, c.missed});
+    for (const auto& c : clocks_) res.inlets.push_back(c.report());
     if (absent_) keep_present(res, removed_);
     res.wall_seconds =
         std::chrono::duration<double>(std::chrono::steady_clock::now() - wall0).count();
@@ -676,17 +676,11 @@ class EdmCore {
     return true;
   }
 
-  // Whether a grain of radius R centred at x (wrapped here on periodic axes) at time t lies inside
-  // the domain on its closed axes, outside every outlet, and clear of every wall and grain.
+  // Whether a grain of radius R centred at x (wrapped here on periodic axes) at time t is clear of
+  // the domain's closed faces, the outlets and the walls (System::clear_of_boundaries) and of every
+  // grain.
   bool place_free(Vec<D>& x, double R, double t) const {
-    for (int k = 0; k < D; ++k) {
-      if (sys_.periodic[k]) x[k] = wrap_periodic(x[k], lo_[k], hi_[k]);
-      else if (x[k] - R < lo_[k] || x[k] + R > hi_[k]) return false;
-    }
-    for (const Outlet<D>& o : sys_.outlets)
-      if (o.region.inside(x)) return false;
-    for (const WallShape<D>* w : shapes_)
-      if (!(w->at(x, R, t).gap > 0.0)) return false;
+    if (!sys_.clear_of_boundaries(x, R, t)) return false;
     bool free = true;
     grid_.around(grid_.coords(x), [&](int lin, const Vec<D>& shift) {
       for (int j = head_[lin]; j >= 0 && free; j = next_[j]) {

@@ -49,25 +49,9 @@ struct Skins {
   double capture = 0.0, list = 0.0;
 };
 constexpr double kListSkin = 0.1;  // soft neighbour-list skin, fraction of the smallest diameter
-// The smallest and largest diameters of a run: of the grains at the start and of those the inlets
-// insert (kNever and 0 when there are none).
-template <int D>
-std::pair<double, double> diameter_range(const System<D>& sys) {
-  double dmin = kNever, dmax = 0.0;
-  for (double r : sys.radius) {
-    dmin = std::min(dmin, 2.0 * r);
-    dmax = std::max(dmax, 2.0 * r);
-  }
-  for (const Inlet<D>& in : sys.inlets) {
-    dmin = std::min(dmin, 2.0 * in.rmin);
-    dmax = std::max(dmax, 2.0 * in.rmax);
-  }
-  return {dmin, dmax};
-}
-
 template <int D>
 Skins hybrid_skins(const System<D>& sys, const SoftPlan& plan, const HybridSettings& hs, double h) {
-  const double dmin = diameter_range(sys).first;
+  const double dmin = 2.0 * sys.radius_range().first;
   Skins s;
   s.capture = hs.skin * (dmin < kNever ? dmin : 0.0);
   // The skin must cover the largest relative approach in one substep (two particles at the
@@ -797,7 +781,7 @@ class HybridEngine final : public edm::EdmCore<D, CalendarQueue, HybridEngine<D>
       HOT[i].t = t;
       const Vec<D>& x = HOT[i].x;
       if (outlets) [[unlikely]] {
-        if (const int o = outlet_at(x); o >= 0) {
+        if (const int o = sys_.outlet_at(x); o >= 0) {
           leaving_.emplace_back(i, o);
           continue;
         }
@@ -861,17 +845,6 @@ class HybridEngine final : public edm::EdmCore<D, CalendarQueue, HybridEngine<D>
     } else {
       clock_ = false;
     }
-  }
-
-  // The outlet (index into System::outlets) whose region holds x, or -1.
-  int outlet_at(const Vec<D>& x) const {
-    Vec<D> y = x;
-    if (any_periodic_)
-      for (int k = 0; k < D; ++k)
-        if (sys_.periodic[k]) y[k] = wrap_periodic(y[k], lo_[k], hi_[k]);
-    for (std::size_t o = 0; o < sys_.outlets.size(); ++o)
-      if (sys_.outlets[o].region.inside(y)) return static_cast<int>(o);
-    return -1;
   }
 
   // The soft grains that entered an outlet in this substep's drift (leaving_) leave the run with
@@ -1477,7 +1450,7 @@ template <int D>
 SoftPlan hybrid_preflight(const System<D>& system, const HybridSettings& settings) {
   SoftPlan plan = plan_soft<D>(system);
   const double h = hybrid_substep(plan, settings);
-  const double dmax = diameter_range(system).second;
+  const double dmax = 2.0 * system.radius_range().second;
   check_periodic_axes<D>(system.lower, system.upper, system.periodic, dmax,
                          hybrid_skins(system, plan, settings, h).list);
   return plan;

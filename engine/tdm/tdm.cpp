@@ -164,7 +164,6 @@ class TdmEngine {
 
   // Outlets (System::outlets): grains whose centre is inside one after a step are taken out
   // (scan_outlets) and dropped from the arrays at the rebuild that follows (drop_gone).
-  std::vector<Outlet<D>> outlets_;
   std::vector<std::uint8_t> gone_;        // per particle in storage order: leaving at this step
   std::vector<std::uint8_t> removed_id_;  // per particle id: has left (empty until the first)
   std::size_t N0_ = 0;                    // particle ids: those at the start, then one per grain due from the inlets
@@ -185,18 +184,10 @@ class TdmEngine {
   std::string status_ = "ok", message_;
 };
 
-double largest_diameter(const std::vector<double>& radius) {
-  double dmax = 0.0;
-  for (double r : radius) dmax = std::max(dmax, 2.0 * r);
-  return dmax;
-}
-
 // The largest diameter of the run: of the grains at the start and of those the inlets insert.
 template <int D>
 double largest_diameter(const System<D>& sys) {
-  double d = largest_diameter(sys.radius);
-  for (const Inlet<D>& in : sys.inlets) d = std::max(d, 2.0 * in.rmax);
-  return d;
+  return 2.0 * sys.radius_range().second;
 }
 
 template <int D>
@@ -221,7 +212,6 @@ template <int D>
 void TdmEngine<D>::setup() {
   N_ = sys_.size();
   N0_ = N_;
-  outlets_ = sys_.outlets;
   next_id_ = static_cast<std::uint32_t>(N_);
   for (std::size_t k = 0; k < sys_.inlets.size(); ++k) {
     clocks_.emplace_back(sys_.inlets[k], k, set_.end_time);
@@ -340,29 +330,24 @@ bool TdmEngine<D>::scan_outlets() {
   bool any = false;
   for (std::size_t i = 0; i < N_; ++i) {
     if (is_fixed(i)) continue;
-    Vec<D> x = x_[i];
-    for (int k = 0; k < D; ++k)
-      if (sys_.periodic[k]) x[k] = wrap_periodic(x[k], sys_.lower[k], sys_.upper[k]);
-    for (std::size_t o = 0; o < outlets_.size(); ++o) {
-      if (!outlets_[o].region.inside(x)) continue;
-      if (gone_.empty()) gone_.assign(N_, 0);
-      if (removed_id_.empty()) removed_id_.assign(N0_, 0);  // (with inlets: allocated at the start)
-      gone_[i] = 1;
-      removed_id_[id_[i]] = 1;
-      any = true;
-      ++grains_out_;
-      mass_out_ += m_[i];
-      OutflowRecord<D> rec;
-      rec.time = t;
-      rec.id = id_[i];
-      rec.outlet = static_cast<std::uint32_t>(o);
-      rec.mass = m_[i];
-      rec.x = x;
-      rec.v = v_[i];
-      rec.w = w_[i];
-      for (auto* ob : obs_) ob->on_outflow(rec);
-      break;
-    }
+    const int o = sys_.outlet_at(x_[i]);
+    if (o < 0) continue;
+    if (gone_.empty()) gone_.assign(N_, 0);
+    if (removed_id_.empty()) removed_id_.assign(N0_, 0);  // (with inlets: allocated at the start)
+    gone_[i] = 1;
+    removed_id_[id_[i]] = 1;
+    any = true;
+    ++grains_out_;
+    mass_out_ += m_[i];
+    OutflowRecord<D> rec;
+    rec.time = t;
+    rec.id = id_[i];
+    rec.outlet = static_cast<std::uint32_t>(o);
+    rec.mass = m_[i];
+    rec.x = sys_.wrapped(x_[i]);
+    rec.v = v_[i];
+    rec.w = w_[i];
+    for (auto* ob : obs_) ob->on_outflow(rec);
   }
   return any;
 }
@@ -447,14 +432,7 @@ bool TdmEngine<D>::insert_due() {
 // width covers) and those inserted since.
 template <int D>
 bool TdmEngine<D>::place_free(Vec<D>& x, double R, double t) const {
-  for (int k = 0; k < D; ++k) {
-    if (sys_.periodic[k]) x[k] = wrap_periodic(x[k], sys_.lower[k], sys_.upper[k]);
-    else if (x[k] - R < sys_.lower[k] || x[k] + R > sys_.upper[k]) return false;
-  }
-  for (const Outlet<D>& o : outlets_)
-    if (o.region.inside(x)) return false;
-  for (const WallShape<D>* w : shapes_)
-    if (!(w->at(x, R, t).gap > 0.0)) return false;
+  if (!sys_.clear_of_boundaries(x, R, t)) return false;
   auto clear = [&](std::size_t j, const Vec<D>& shift) {
     const double s = R + R_[j];
     return (x - x_[j] - shift).squaredNorm() >= s * s;
@@ -984,7 +962,7 @@ RunResult<D> TdmEngine<D>::run() {
     particle_steps_ += static_cast<double>(N_);
     bool moved = false;
     for (const auto& a : acc_t_) moved = moved || a.moved;
-    if (!outlets_.empty() && scan_outlets()) moved = true;
+    if (!sys_.outlets.empty() && scan_outlets()) moved = true;
     if (!clocks_.empty() && insert_due()) moved = true;
     // A turning wall sweeps towards the grains too: together with their half skin, half the skin.
     if (sweep_ > 0.0 && sweep_ * static_cast<double>(steps_ - build_step_) * dt_ > 0.5 * skin_) moved = true;
@@ -1057,7 +1035,7 @@ RunResult<D> TdmEngine<D>::run() {
   res.mass_out = mass_out_;
   res.grains_in = grains_in_;
   res.mass_in = mass_in_;
-  for (const auto& c : clocks_) res.inlets.push_back({c.inlet->name, c.slots, c.inserted, c.missed});
+  for (const auto& c : clocks_) res.inlets.push_back(c.report());
   res.max_overlap = max_abs_;
   res.max_overlap_relative = max_rel_;
   SoftStats& s = res.soft;

@@ -13,19 +13,13 @@
 #include "engine/hybrid.hpp"
 #include "engine/tdm.hpp"
 #include "io/scene.hpp"
+#include "tests/support/flows.hpp"
 
 namespace matep {
 namespace {
 
 template <int D>
-struct Recorder final : Observer<D> {
-  std::vector<InflowRecord<D>> in;
-  std::vector<OutflowRecord<D>> out;
-  std::vector<ThermoSample> rows;
-  void on_inflow(const InflowRecord<D>& r) override { in.push_back(r); }
-  void on_outflow(const OutflowRecord<D>& r) override { out.push_back(r); }
-  void on_sample(const ThermoSample& s) override { rows.push_back(s); }
-};
+using Recorder = test::FlowRecorder<D>;
 
 TEST(Inlets, SlotTimesAndCounts) {
   Inlet<3> in;
@@ -169,7 +163,7 @@ TEST(Inlets, AFullRegionReportsTheRateItCouldNotMeet) {
 
 // A hopper fed from a shower inlet and drained through the floor's orifice, in TDM and the
 // hybrid (an inelastic, frictional bed) and EDM (an elastic gas): the accounts balance.
-const char* kFeed = R"([run]
+const std::string kFeed = R"([run]
 dimension = 3
 method = "tdm"
 end_time = 0.3
@@ -196,32 +190,7 @@ point = [0.025, 0.025, 0.0]
 normal = [0.0, 0.0, 1.0]
 hole = {shape = "disk", radius = 0.008}
 material = "glass"
-[wall.lid]
-type = "plane"
-point = [0.0, 0.0, 0.12]
-normal = [0.0, 0.0, -1.0]
-material = "glass"
-[wall.left]
-type = "plane"
-point = [0.0, 0.0, 0.0]
-normal = [1.0, 0.0, 0.0]
-material = "glass"
-[wall.right]
-type = "plane"
-point = [0.05, 0.0, 0.0]
-normal = [-1.0, 0.0, 0.0]
-material = "glass"
-[wall.front]
-type = "plane"
-point = [0.0, 0.0, 0.0]
-normal = [0.0, 1.0, 0.0]
-material = "glass"
-[wall.back]
-type = "plane"
-point = [0.0, 0.05, 0.0]
-normal = [0.0, -1.0, 0.0]
-material = "glass"
-[inlet.shower]
+)" + test::bin_walls("0.05", "0.12") + R"([inlet.shower]
 type = "disk"
 point = [0.025, 0.025, 0.1]
 normal = [0.0, 0.0, 1.0]

@@ -15,27 +15,13 @@
 #include "engine/hybrid.hpp"
 #include "engine/tdm.hpp"
 #include "io/scene.hpp"
+#include "tests/support/flows.hpp"
 
 namespace matep {
 namespace {
 
 template <int D>
-struct Recorder final : Observer<D> {
-  std::vector<OutflowRecord<D>> out;
-  std::vector<ThermoSample> rows;
-  std::map<std::uint32_t, bool> soft;  // hybrid: the grains' modes from the switch records
-  std::size_t out_soft = 0;            // grains removed while soft
-  bool wants_collisions() const override { return true; }
-  void on_collision(const CollisionRecord<D>& c) override {
-    if (c.kind == EventKind::ToSoft) soft[c.i] = true;
-    if (c.kind == EventKind::ToHard) soft[c.i] = false;
-  }
-  void on_outflow(const OutflowRecord<D>& r) override {
-    out.push_back(r);
-    out_soft += soft[r.id];
-  }
-  void on_sample(const ThermoSample& s) override { rows.push_back(s); }
-};
+using Recorder = test::FlowRecorder<D>;
 
 constexpr double kG = 9.81;
 
@@ -171,7 +157,7 @@ TEST(Outlets, TdmRemovesAtTheFirstStepInside) {
 // A bin with a holed floor drained through the open lower face of the domain and through a box in
 // one corner of the floor (where the hybrid's grains are soft: a bed forms there), in all three
 // methods: the bookkeeping holds at every row and at the end.
-const char* kDrain = R"([run]
+const std::string kDrain = R"([run]
 dimension = 3
 method = "tdm"
 end_time = 0.35
@@ -199,32 +185,7 @@ point = [0.025, 0.025, 0.0]
 normal = [0.0, 0.0, 1.0]
 hole = {shape = "disk", radius = 0.01}
 material = "glass"
-[wall.lid]
-type = "plane"
-point = [0.0, 0.0, 0.12]
-normal = [0.0, 0.0, -1.0]
-material = "glass"
-[wall.left]
-type = "plane"
-point = [0.0, 0.0, 0.0]
-normal = [1.0, 0.0, 0.0]
-material = "glass"
-[wall.right]
-type = "plane"
-point = [0.05, 0.0, 0.0]
-normal = [-1.0, 0.0, 0.0]
-material = "glass"
-[wall.front]
-type = "plane"
-point = [0.0, 0.0, 0.0]
-normal = [0.0, 1.0, 0.0]
-material = "glass"
-[wall.back]
-type = "plane"
-point = [0.0, 0.05, 0.0]
-normal = [0.0, -1.0, 0.0]
-material = "glass"
-[outlet.bottom]
+)" + test::bin_walls("0.05", "0.12") + R"([outlet.bottom]
 type = "face"
 face = "z-"
 [outlet.corner]

@@ -15,6 +15,7 @@
 
 #include "io/scene.hpp"
 #include "tests/support/cli.hpp"
+#include "tests/support/scene_errors.hpp"
 
 namespace matep {
 namespace {
@@ -55,15 +56,7 @@ material = "glass"
 const std::string kInlet = "[inlet.feed]\nmaterial = \"glass\"\ngrain_radius = 0.002\nrate = 500\n";
 
 void expect_error(const std::string& text, std::initializer_list<std::string> parts) {
-  try {
-    load_scene_string(text, "inlets.toml", kDir, {});
-    ADD_FAILURE() << "no SceneError; expected one containing " << *parts.begin();
-  } catch (const SceneError& e) {
-    const std::string msg = e.what();
-    EXPECT_EQ(msg.rfind("inlets.toml:", 0), 0u) << msg;
-    EXPECT_EQ(msg.find('\n'), std::string::npos) << msg;
-    for (const auto& p : parts) EXPECT_NE(msg.find(p), std::string::npos) << "'" << p << "' not in: " << msg;
-  }
+  test::expect_scene_error(text, "inlets.toml", kDir, parts);
 }
 
 TEST(SceneInlets, EachTypeBuildsTheRegionItNames) {

@@ -15,6 +15,7 @@
 
 #include "io/scene.hpp"
 #include "tests/support/cli.hpp"
+#include "tests/support/scene_errors.hpp"
 
 namespace matep {
 namespace {
@@ -74,15 +75,7 @@ region = {lower = [0.0, 0.0], upper = [0.5, 0.5]}
 }
 
 void expect_error(const std::string& text, std::initializer_list<std::string> parts) {
-  try {
-    load_scene_string(text, "outlets.toml", kDir, {});
-    ADD_FAILURE() << "no SceneError; expected one containing " << *parts.begin();
-  } catch (const SceneError& e) {
-    const std::string msg = e.what();
-    EXPECT_EQ(msg.rfind("outlets.toml:", 0), 0u) << msg;
-    EXPECT_EQ(msg.find('\n'), std::string::npos) << msg;
-    for (const auto& p : parts) EXPECT_NE(msg.find(p), std::string::npos) << "'" << p << "' not in: " << msg;
-  }
+  test::expect_scene_error(text, "outlets.toml", kDir, parts);
 }
 
 TEST(SceneOutlets, EachTypeBuildsTheRegionItNames) {

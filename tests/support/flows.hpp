@@ -1,0 +1,47 @@
+// Test helpers for open flows: an observer that records every grain in and out and every thermo row
+// (and, in a hybrid run, which grains were soft when they left), and the five walls of an open-top
+// bin in scene text.
+#pragma once
+
+#include <cstdint>
+#include <map>
+#include <string>
+#include <vector>
+
+#include "engine/observer.hpp"
+
+namespace matep::test {
+
+template <int D>
+struct FlowRecorder final : Observer<D> {
+  std::vector<InflowRecord<D>> in;
+  std::vector<OutflowRecord<D>> out;
+  std::vector<ThermoSample> rows;
+  std::map<std::uint32_t, bool> soft;  // hybrid: the grains' modes from the switch records
+  std::size_t out_soft = 0;            // grains removed while soft
+  bool wants_collisions() const override { return true; }
+  void on_collision(const CollisionRecord<D>& c) override {
+    if (c.kind == EventKind::ToSoft) soft[c.i] = true;
+    if (c.kind == EventKind::ToHard) soft[c.i] = false;
+  }
+  void on_inflow(const InflowRecord<D>& r) override { in.push_back(r); }
+  void on_outflow(const OutflowRecord<D>& r) override {
+    out.push_back(r);
+    out_soft += soft[r.id];
+  }
+  void on_sample(const ThermoSample& s) override { rows.push_back(s); }
+};
+
+// [wall.*] tables of glass: a lid at z = top and four side walls around [0, w]^2 (3D).
+inline std::string bin_walls(const std::string& w, const std::string& top) {
+  return "[wall.lid]\ntype = \"plane\"\npoint = [0.0, 0.0, " + top +
+         "]\nnormal = [0.0, 0.0, -1.0]\nmaterial = \"glass\"\n"
+         "[wall.left]\ntype = \"plane\"\npoint = [0.0, 0.0, 0.0]\nnormal = [1.0, 0.0, 0.0]\nmaterial = \"glass\"\n"
+         "[wall.right]\ntype = \"plane\"\npoint = [" + w +
+         ", 0.0, 0.0]\nnormal = [-1.0, 0.0, 0.0]\nmaterial = \"glass\"\n"
+         "[wall.front]\ntype = \"plane\"\npoint = [0.0, 0.0, 0.0]\nnormal = [0.0, 1.0, 0.0]\nmaterial = \"glass\"\n"
+         "[wall.back]\ntype = \"plane\"\npoint = [0.0, " + w +
+         ", 0.0]\nnormal = [0.0, -1.0, 0.0]\nmaterial = \"glass\"\n";
+}
+
+}  // namespace matep::test

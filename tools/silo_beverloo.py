@@ -3,9 +3,11 @@
 
   tools/silo_beverloo.py [--matep build/matep] [--sizes 4,5,6,7,8] [--methods tdm,hybrid]
                          [--end 1.0] [--window 0.2,1.0] [--threads 1] [--out charts] [--plot-only]
+                         [--fill] [--friction MU --tag NAME]
 
 Starts from the shipped bed (cases/silo_bed.csv, the bed cases/silo_fill.toml settles; --fill runs
-that scene again and starts from its final state), then for each orifice diameter D (in grain diameters d) and method runs cases/silo_discharge.toml with
+that scene again and starts from its final state; --friction MU sets the beads' and walls' friction
+in both scenes and settles a new bed, --tag names the outputs apart), then for each orifice diameter D (in grain diameters d) and method runs cases/silo_discharge.toml with
 wall.floor.hole.radius = D d / 2 to --end seconds. The mass flow rate W of a run is the least-squares
 slope of the cumulative mass in outflow.csv against time over --window (the start-up transient
 excluded; the bin stays more than one diameter full), its uncertainty the spread of the slopes of
@@ -140,16 +142,24 @@ def main() -> int:
     ap.add_argument("--out", default=str(ROOT / "charts"))
     ap.add_argument("--runs", default=str(ROOT / "out" / "silo_beverloo"), help="folder for the runs' outputs")
     ap.add_argument("--fill", action="store_true", help="settle the bed again (cases/silo_fill.toml)")
+    ap.add_argument("--friction", type=float, default=None,
+                    help="the beads' (and walls') friction coefficient instead of the scenes' 0.5; settles a new bed")
+    ap.add_argument("--tag", default="", help="suffix of the CSV and PNG names (silo_beverloo TAG .csv)")
     ap.add_argument("--plot-only", action="store_true")
     a = ap.parse_args()
     out = Path(a.out)
     out.mkdir(parents=True, exist_ok=True)
-    csv_path, png_path = out / "silo_beverloo.csv", out / "silo_beverloo.png"
+    csv_path, png_path = out / f"silo_beverloo{a.tag}.csv", out / f"silo_beverloo{a.tag}.png"
+    extra = {} if a.friction is None else {"material.glass.friction": a.friction}
+    if a.friction is not None:
+        a.fill = True
     t0, t1 = (float(x) for x in a.window.split(","))
     bed = ROOT / "cases" / "silo_bed.csv"
-    if a.fill:
+    if a.fill and a.plot_only:
+        bed = Path(a.runs) / "fill" / "final_state.csv"
+    elif a.fill:
         fill = Path(a.runs) / "fill"
-        run = run_matep(a.matep, ROOT / "cases" / "silo_fill.toml", {"run.threads": a.threads}, fill)
+        run = run_matep(a.matep, ROOT / "cases" / "silo_fill.toml", {"run.threads": a.threads, **extra}, fill)
         if run.status != "ok":
             print(f"silo fill: {run.status} {run.message}", file=sys.stderr)
             return 1
@@ -165,7 +175,7 @@ def main() -> int:
                 run = run_matep(a.matep, ROOT / "cases" / "silo_discharge.toml",
                                 {"run.method": method, "run.end_time": a.end, "run.threads": a.threads,
                                  "wall.floor.hole.radius": 0.5 * s * D_GRAIN,
-                                 "particles.bed.file": str(bed)},
+                                 "particles.bed.file": str(bed), **extra},
                                 Path(a.runs) / f"{method}_D{s:g}")
                 if run.summary is None or run.status != "ok":
                     print(f"D = {s:g} d {method}: {run.status} {run.message}", file=sys.stderr)

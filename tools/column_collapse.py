@@ -1,0 +1,217 @@
+#!/usr/bin/python3
+"""Granular column collapse (2D) against the published runout laws (Lube et al. 2005, Lajeunesse et
+al. 2005): (L_f - L_i) / L_i = 1.2 a for small aspect ratios a = H_i / L_i, 1.9 a^(2/3) for large.
+
+  tools/column_collapse.py [--matep build/matep] [--ratios 0.5,1,2,3,5,8] [--methods tdm,hybrid]
+                           [--threads 1] [--jobs 2] [--out charts] [--runs out/column_collapse]
+                           [--plot-only]
+
+For each target aspect ratio the script (1) settles a column of disks behind a gate 20 d from the
+left wall (cases/column_fill.toml with the count and the loose start region scaled, the domain and
+the gate made tall enough), (2) measures the settled column's height H_i (the mean over four strips
+of the highest grain top, above the base's top) and so its actual a = H_i / L_i, (3) releases it
+without the gate (cases/column_collapse.toml, the column and the base read from the settled state, which
+the script splits at the base's top) and runs
+until the deposit is at rest (end time 0.6 s + 6 sqrt(H_i / g), the kinetic energy checked), and
+(4) measures the runout: L_f is the deposit's front, where the deposit thins below one grain
+(the first strip, one mean diameter wide, whose highest grain top is less than one mean diameter
+above the base); the sparse tail of single grains beyond it is reported too (`runout_with_tail`:
+the contiguous grains' extent, gaps up to one diameter). Writes
+OUT/column_collapse.csv (one row per run) and OUT/column_collapse.png (runout against a, log-log,
+with the two published laws and their +-25 % bands), and prints the table, each point's ratio to
+the published law of its regime and the hybrid's wall time against TDM's.
+"""
+from __future__ import annotations
+
+import argparse
+import csv
+import math
+import sys
+import tomllib
+from concurrent.futures import ThreadPoolExecutor
+from pathlib import Path
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+from matep_runs import import_pyplot, run_matep, write_csv  # noqa: E402
+
+ROOT = Path(__file__).resolve().parent.parent
+FILL, COLLAPSE = ROOT / "cases" / "column_fill.toml", ROOT / "cases" / "column_collapse.toml"
+G, D, L_I = 9.81, 0.002, 0.04            # cases/column_fill.toml: |g|, mean diameter, gate at 20 d
+BASE_TOP = 0.0024                         # the top of the strip of fixed disks on the floor
+N_BASE = tomllib.loads(FILL.read_text())["particles"]["base"]["count"]   # ids 0 ... N_BASE - 1
+MEAN_AREA = math.pi * (0.0012 ** 3 - 0.0008 ** 3) / (3 * 0.0004)   # E[pi r^2], r uniform in [0.8, 1.2] mm
+PHI_SETTLED, PHI_LOOSE = 0.8, 0.4         # packing of a settled column (measured), and of the loose start
+FIELDS = ["method", "a_target", "L_i", "a", "H_i", "L_f", "runout", "published", "ratio_to_published", "runout_with_tail",
+          "kinetic_at_end", "grains", "wall_seconds"]
+
+
+def published(a: float) -> float:
+    """Lube et al. 2005 (PRE 72, 041301) and Lajeunesse et al. 2005 (Phys. Fluids 17, 103302),
+    REFERENCES sec. 7: 1.2 a below a ~ 2.3 (where the two laws cross), 1.9 a^(2/3) above."""
+    return 1.2 * a if a < (1.9 / 1.2) ** 3 else 1.9 * a ** (2.0 / 3.0)
+
+
+def read_state(path: Path):
+    with open(path) as f:
+        return [{k: float(v) for k, v in row.items()} for row in csv.DictReader(f)]
+
+
+def column_height(grains, li: float = L_I) -> float:
+    strips = [max((g["y"] + g["radius"] for g in grains if k * li / 4 <= g["x"] < (k + 1) * li / 4), default=0.0)
+              for k in range(4)]
+    return sum(strips) / 4 - BASE_TOP
+
+
+def front(grains) -> float:
+    """The deposit's front: the left edge of the first strip (one mean diameter wide, from the left
+    wall) whose highest grain top stands less than one mean diameter above the base's top. A
+    sparse tail of single grains resting in the base's hollows lies beyond it."""
+    x = 0.0
+    while True:
+        tops = [g["y"] + g["radius"] for g in grains if x <= g["x"] < x + D]
+        if not tops or max(tops) - BASE_TOP < D:
+            return x
+        x += D
+
+
+def farthest(grains) -> float:
+    """The right edge of the contiguous grains (sorted by their left edge, up to the first gap
+    wider than a mean diameter): the front including the tail."""
+    edge = 0.0
+    for g in sorted(grains, key=lambda g: g["x"] - g["radius"]):
+        if g["x"] - g["radius"] > edge + D:
+            break
+        edge = max(edge, g["x"] + g["radius"])
+    return edge
+
+
+def one(matep, a_target: float, li: float, method: str, runs: Path, threads: int, plot_only: bool) -> dict | None:
+    n = round(a_target * li * li * PHI_SETTLED / MEAN_AREA)
+    loose = n * MEAN_AREA / (li * PHI_LOOSE)
+    top = max(0.5, 0.0025 + loose + 0.05)
+    walls = {"domain.upper": [0.9, top], "wall.roof.point": [0.0, top]}
+    fill_dir, bed, base = runs / f"fill_a{a_target:g}", runs / f"bed_a{a_target:g}.csv", runs / f"base_a{a_target:g}.csv"
+    if not plot_only and method == "tdm":
+        fill_end = 0.3 + 2 * math.sqrt(2 * loose / G)
+        r = run_matep(matep, FILL, {**walls, "run.end_time": fill_end, "run.threads": threads,
+                                    "particles.column.count": n,
+                                    "particles.column.region.upper": [li, 0.0025 + loose],
+                                    "wall.gate.point": [li, 0.5 * top],
+                                    "wall.gate.patch.length": top - 0.005}, fill_dir)
+        if r.status != "ok":
+            print(f"a = {a_target:g}: fill {r.status} {r.message}", file=sys.stderr)
+            return None
+        settled = read_state(fill_dir / "final_state.csv")
+        for path, part in ((bed, [g for g in settled if g["id"] >= N_BASE]),
+                           (base, [g for g in settled if g["id"] < N_BASE])):
+            with open(path, "w") as f:
+                f.write("x,y,vx,vy,w,radius\n")
+                for g in part:
+                    f.write(f"{g['x']!r},{g['y']!r},{g['vx']!r},{g['vy']!r},{g['w']!r},{g['radius']!r}\n")
+    state = read_state(bed)
+    h_i = column_height(state, li)
+    end = 0.6 + 6 * math.sqrt(h_i / G)
+    out_dir = runs / f"{method}_a{a_target:g}"
+    if plot_only:
+        import json
+        with open(out_dir / "summary.json") as f:
+            summary = json.load(f)
+    else:
+        sets = {**walls, "run.method": method, "run.end_time": end, "run.threads": threads,
+                "particles.column.file": str(bed), "particles.base.file": str(base)}
+        if method == "hybrid":
+            sets["hybrid.rest_speed"] = 0.01 * math.sqrt(G * D)   # the deposit sleeps once at rest
+        r = run_matep(matep, COLLAPSE, sets, out_dir)
+        if r.status != "ok":
+            print(f"a = {a_target:g} {method}: {r.status} {r.message}", file=sys.stderr)
+            return None
+        summary = r.summary
+    final = read_state(out_dir / "final_state.csv")
+    final = [g for g in final if g["id"] >= N_BASE]
+    with open(out_dir / "thermo.csv") as f:
+        thermo = list(csv.DictReader(f))
+    ke_peak = max(float(t["kinetic_energy"]) for t in thermo)
+    a = h_i / li
+    lf = front(final)
+    runout = (lf - li) / li
+    tail = (farthest(final) - li) / li
+    return {"method": method, "a_target": a_target, "L_i": li, "a": a, "H_i": h_i, "L_f": lf, "runout": runout,
+            "published": published(a), "ratio_to_published": runout / published(a), "runout_with_tail": tail,
+            "kinetic_at_end": float(thermo[-1]["kinetic_energy"]) / ke_peak, "grains": len(final),
+            "wall_seconds": float(summary["wall_seconds"])}
+
+
+def plot(rows, png: Path):
+    plt = import_pyplot()
+    fig, ax = plt.subplots(figsize=(6.4, 4.8))
+    aa = [0.3 * 1.05 ** k for k in range(80)]
+    small = [a for a in aa if a < 4]
+    large = [a for a in aa if a > 1.2]
+    ax.plot(small, [1.2 * a for a in small], "k--", lw=1, label="1.2 a (Lube et al. 2005)")
+    ax.fill_between(small, [0.75 * 1.2 * a for a in small], [1.25 * 1.2 * a for a in small], color="0.85", lw=0)
+    ax.plot(large, [1.9 * a ** (2 / 3) for a in large], "k-", lw=1, label="1.9 a^(2/3) (Lube; Lajeunesse)")
+    ax.fill_between(large, [0.75 * 1.9 * a ** (2 / 3) for a in large], [1.25 * 1.9 * a ** (2 / 3) for a in large],
+                    color="0.9", lw=0, label="±25 %")
+    for method, mk in (("tdm", "o"), ("hybrid", "s")):
+        pts = [r for r in rows if r["method"] == method]
+        if pts:
+            ax.plot([float(r["a"]) for r in pts], [float(r["runout"]) for r in pts], mk,
+                    mfc="none" if method == "hybrid" else None, ms=7, label=method.upper() if method == "tdm" else method)
+    ax.set_xscale("log")
+    ax.set_yscale("log")
+    ax.set_xlabel("aspect ratio a = H_i / L_i")
+    ax.set_ylabel("runout (L_f − L_i) / L_i")
+    ax.set_title("2D column collapse (cases/column_collapse.toml)")
+    ax.legend(fontsize=8)
+    fig.tight_layout()
+    fig.savefig(png, dpi=110)
+
+
+def main() -> int:
+    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("--matep", default=str(ROOT / "build" / "matep"))
+    ap.add_argument("--ratios", default="0.5,1,2,3,5,8")
+    ap.add_argument("--width", default="60,30,20,20,20,20", help="each column's width L_i in mean diameters")
+    ap.add_argument("--methods", default="tdm,hybrid")
+    ap.add_argument("--threads", type=int, default=1)
+    ap.add_argument("--jobs", type=int, default=2, help="aspect ratios run at a time")
+    ap.add_argument("--out", default=str(ROOT / "charts"))
+    ap.add_argument("--runs", default=str(ROOT / "out" / "column_collapse"), help="folder for the runs' outputs")
+    ap.add_argument("--plot-only", action="store_true", help="analyse the runs already in --runs")
+    a = ap.parse_args()
+    out, runs = Path(a.out), Path(a.runs)
+    out.mkdir(parents=True, exist_ok=True)
+    runs.mkdir(parents=True, exist_ok=True)
+    csv_path, png_path = out / "column_collapse.csv", out / "column_collapse.png"
+    methods = a.methods.split(",")
+
+    widths = [float(w) * D for w in a.width.split(",")]
+
+    def ratio(x_w):
+        # TDM first: it settles the column the other methods start from.
+        return [one(a.matep, float(x_w[0]), x_w[1], m, runs, a.threads, a.plot_only)
+                for m in sorted(methods, key=lambda m: m != "tdm")]
+
+    rows = []
+    with ThreadPoolExecutor(max_workers=max(1, a.jobs)) as pool:
+        for res in pool.map(ratio, zip(a.ratios.split(","), widths)):
+            for r in res:
+                if r is None:
+                    continue
+                rows.append(r)
+                print(f"a = {r['a']:.3f} {r['method']:6s}: runout {r['runout']:.3f} (with the tail {r['runout_with_tail']:.3f}), published {r['published']:.3f} "
+                      f"(ratio {r['ratio_to_published']:.3f}), kinetic energy at the end {r['kinetic_at_end']:.1e} of its peak, "
+                      f"{r['wall_seconds']:.1f} s wall", flush=True)
+    write_csv(csv_path, FIELDS, rows)
+    for x in a.ratios.split(","):
+        by = {r["method"]: r for r in rows if r["a_target"] == float(x)}
+        if "tdm" in by and "hybrid" in by:
+            print(f"a = {by['tdm']['a']:.3f}: hybrid runout / TDM = {by['hybrid']['runout'] / by['tdm']['runout']:.4f}, "
+                  f"hybrid wall time / TDM = {by['hybrid']['wall_seconds'] / by['tdm']['wall_seconds']:.3f}")
+    plot(rows, png_path)
+    print(f"wrote {csv_path} and {png_path}")
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

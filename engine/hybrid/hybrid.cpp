@@ -8,7 +8,6 @@
 #include <algorithm>
 #include <array>
 #include <cmath>
-#include <map>
 #include <stdexcept>
 #include <tuple>
 
@@ -498,45 +497,28 @@ class HybridEngine final : public edm::EdmCore<D, CalendarQueue, HybridEngine<D>
     add_walls_only(i, t);
   }
 
-  // Index of the contact constants of a pair (a wall) in ctab_, computed once per combination of
-  // materials and radii.
+  // Index of the contact constants of a pair (a wall) in ctab_. One table for a uniform scene (one
+  // material, one radius); otherwise one constant per entry, appended as the entry is made and the
+  // table rebuilt for the live entries at each list build (rebuild_entries): a polydisperse scene
+  // has a different constant for nearly every pair, and a table of every pair ever met grew
+  // without bound and cost a tree search per entry (47 % of a 2D chute flow's time).
   std::uint32_t pair_contact_of(int a, int b) {
-    if (is_fixed(a) || is_fixed(b)) {  // m* = the moving grain's mass (w = -2 marks the kind)
+    if (is_fixed(a) || is_fixed(b)) {  // m* = the moving grain's mass
       if (is_fixed(a)) std::swap(a, b);
       if (uniform_) return 1 + static_cast<std::uint32_t>(sys_.walls.size());
-      return lookup_contact(cold_[a].mat, hot_[a].R, cold_[b].mat, hot_[b].R, -2,
-                            [&] { return pair_contact(plan_, cold_[a].mat, hot_[a].R, mass(a), cold_[b].mat, hot_[b].R, kPlane); });
+      return add_contact(pair_contact(plan_, cold_[a].mat, hot_[a].R, mass(a), cold_[b].mat, hot_[b].R, kPlane));
     }
     if (uniform_) return 0;
-    return lookup_contact(cold_[a].mat, hot_[a].R, cold_[b].mat, hot_[b].R, -1,
-                          [&] { return pair_contact(plan_, cold_[a].mat, hot_[a].R, mass(a), cold_[b].mat, hot_[b].R, mass(b)); });
+    return add_contact(pair_contact(plan_, cold_[a].mat, hot_[a].R, mass(a), cold_[b].mat, hot_[b].R, mass(b)));
   }
   std::uint32_t wall_contact_of(int w, int i) {
     if (uniform_) return 1 + static_cast<std::uint32_t>(w);
-    return lookup_contact(cold_[i].mat, hot_[i].R, -1, 0.0, w,
-                          [&] { return wall_contact(plan_, w, cold_[i].mat, hot_[i].R, mass(i)); });
+    return add_contact(wall_contact(plan_, w, cold_[i].mat, hot_[i].R, mass(i)));
   }
-  template <class Make>
-  std::uint32_t lookup_contact(int ma, double Ra, int mb, double Rb, int w, Make&& make) {
-    if (w == -1 && mb >= 0 && (mb < ma || (mb == ma && Rb < Ra))) {  // a symmetric pair (not moving-fixed)
-      std::swap(ma, mb);
-      std::swap(Ra, Rb);
-    }
-    const ContactKey k{ma, mb, w, Ra, Rb};
-    const auto it = ckeys_.find(k);
-    if (it != ckeys_.end()) return it->second;
-    const auto idx = static_cast<std::uint32_t>(ctab_.size());
-    ctab_.push_back(make());
-    ckeys_.emplace(k, idx);
-    return idx;
+  std::uint32_t add_contact(const SoftContact& c) {
+    ctab_.push_back(c);
+    return static_cast<std::uint32_t>(ctab_.size() - 1);
   }
-  struct ContactKey {
-    int ma, mb, w;
-    double Ra, Rb;
-    bool operator<(const ContactKey& o) const {
-      return std::tie(ma, mb, w, Ra, Rb) < std::tie(o.ma, o.mb, o.w, o.Ra, o.Rb);
-    }
-  };
 
   static std::uint32_t ui(int i) { return static_cast<std::uint32_t>(i); }
   static std::uint64_t key(std::uint32_t a, std::uint32_t b) { return (std::uint64_t(a) << 32) | b; }
@@ -568,6 +550,11 @@ class HybridEngine final : public edm::EdmCore<D, CalendarQueue, HybridEngine<D>
     mem.sort();
     pairs_.clear();
     we_.clear();
+    if (!uniform_) {  // the constants of the live entries only: the sleepers' now, the rest below
+      ctab_.clear();
+      for (auto& e : pe_sleep_) e.c = pair_contact_of(static_cast<int>(e.i), static_cast<int>(e.j));
+      for (auto& e : we_sleep_) e.c = wall_contact_of(e.w, e.i);
+    }
     if (epsd_) {  // the sleepers' wall entries keep their torques; the rest is rebuilt below
       std::vector<Spin<D>> kept;
       for (auto& e : we_sleep_) {
@@ -1409,7 +1396,6 @@ class HybridEngine final : public edm::EdmCore<D, CalendarQueue, HybridEngine<D>
   static constexpr double kMaxSkip = 64.0;
   bool uniform_ = false;              // one material and one radius: ctab_ = {pair, wall 0, wall 1, ...}
   std::vector<SoftContact> ctab_;
-  std::map<ContactKey, std::uint32_t> ckeys_;
   soft::SpringMemory<D> springs_;  // contacts remembered across a list build
   soft::PairList<D> pairs_;         // entries with an awake soft end (the soft path's loop)
   std::vector<PairEntry> pe_sleep_;  // touching pairs of two sleepers (frozen)

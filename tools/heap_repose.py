@@ -2,7 +2,7 @@
 """Angle of repose of a poured heap (2D) against sliding and rolling friction.
 
   tools/heap_repose.py [--matep build/matep] [--mu 0.3,0.5,0.8] [--mu-r 0,0.1,0.2]
-                       [--hybrid 0.5:0.1] [--end 5] [--average 1] [--threads 1] [--jobs 2]
+                       [--hybrid 0.5:0.1] [--methods tdm,hybrid] [--end 5] [--average 1] [--threads 1] [--jobs 2]
                        [--out charts] [--runs out/heap_repose] [--plot-only]
 
 Runs cases/heap.toml (disks poured from a narrow inlet onto a plate of fixed disks 60 d wide with
@@ -113,6 +113,7 @@ def main() -> int:
     ap.add_argument("--mu", default="0.3,0.5,0.8")
     ap.add_argument("--mu-r", default="0,0.1,0.2")
     ap.add_argument("--hybrid", default="0.5:0.1", help="MU:MU_R pairs also run with the hybrid ('' for none)")
+    ap.add_argument("--methods", default="tdm,hybrid", help="tdm: the grid of mu and mu_r; hybrid: the --hybrid pairs")
     ap.add_argument("--end", type=float, default=5.0)
     ap.add_argument("--average", type=float, default=1.0)
     ap.add_argument("--threads", type=int, default=1)
@@ -124,8 +125,10 @@ def main() -> int:
     out = Path(a.out)
     out.mkdir(parents=True, exist_ok=True)
     csv_path, png_path = out / "heap_repose.csv", out / "heap_repose.png"
-    jobs = [("tdm", float(m), float(r)) for m in a.mu.split(",") for r in a.mu_r.split(",")]
-    jobs += [("hybrid", float(p.split(":")[0]), float(p.split(":")[1])) for p in a.hybrid.split(",") if p]
+    methods = a.methods.split(",")
+    jobs = [("tdm", float(m), float(r)) for m in a.mu.split(",") for r in a.mu_r.split(",")] if "tdm" in methods else []
+    if "hybrid" in methods:
+        jobs += [("hybrid", float(p.split(":")[0]), float(p.split(":")[1])) for p in a.hybrid.split(",") if p]
 
     def one(job):
         method, mu, mu_r = job

@@ -109,7 +109,7 @@ def beverloo(rows, rho_b):
     return {"C": C, "sC": sC, "k": k, "sk": sk, "a": a, "b": b, "resid": resid, "pts": pts}
 
 
-def plot(rows, fit, png: Path):
+def plot(rows, fit, png: Path, friction: float = 0.5):
     plt = import_pyplot()
     fig, ax = plt.subplots(figsize=(6.5, 4.5))
     for method, style in (("tdm", "o"), ("hybrid", "s")):
@@ -125,7 +125,7 @@ def plot(rows, fit, png: Path):
     ax.set_ylim(bottom=0)
     ax.set_xlabel("orifice diameter D / d")
     ax.set_ylabel("W^(2/5)  (kg/s)^(2/5)")
-    ax.set_title("Silo discharge (cases/silo_discharge.toml)")
+    ax.set_title(f"Silo discharge (cases/silo_discharge.toml), friction μ = {friction:g}")
     ax.legend(fontsize=8)
     fig.tight_layout()
     fig.savefig(png, dpi=110)
@@ -200,7 +200,7 @@ def main() -> int:
             wt, wh = float(by["tdm"]["W"]), float(by["hybrid"]["W"])
             tt, th = float(by["tdm"]["wall_seconds"]), float(by["hybrid"]["wall_seconds"])
             print(f"D = {s:g} d: hybrid W / TDM W = {wh / wt:.4f}, hybrid wall time / TDM = {th / tt:.3f}")
-    plot(rows, fit, png_path)
+    plot(rows, fit, png_path, 0.5 if a.friction is None else a.friction)
     print(f"wrote {csv_path} and {png_path}")
     return 0
 

@@ -155,7 +155,7 @@ def main() -> int:
             rows.append(r)
             print(f"mu = {mu:g}, mu_r = {mu_r:g} {method:6s}: angle {r['angle']:.1f} +- {r['angle_err']:.1f} deg "
                   f"(left {r['left']:.1f}, right {r['right']:.1f}), height {r['height_over_d']:.1f} d, "
-                  f"{r['grains']} grains on the plate, {r['grains_out']} out, {r['wall_seconds']:.1f} s wall", flush=True)
+                  f"{r['grains']} grains in the run, {r['grains_out']} out, {r['wall_seconds']:.1f} s wall", flush=True)
     write_csv(csv_path, FIELDS, rows)
     for h in [r for r in rows if r["method"] == "hybrid"]:
         t = [r for r in rows if r["method"] == "tdm" and r["mu"] == h["mu"] and r["mu_r"] == h["mu_r"]]

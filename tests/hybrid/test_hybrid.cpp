@@ -470,6 +470,36 @@ TEST(HybridRest, SleepingBedMatchesTdmAndStopsTheSubsteps) {
   ::testing::Test::RecordProperty("slept_woken", fmt::format("{} {}", rs.hybrid.slept, rs.hybrid.woken));
 }
 
+// The same rule in a polydisperse 2D bed (radii +-10 %, mu = 0.5): every contact has its own
+// constants, computed per list entry at each build and recomputed for the sleepers' frozen entries
+// (engine/hybrid/hybrid.cpp pair_contact_of). The bed must settle as the awake hybrid and TDM do,
+// every grain asleep at the end with slept - woken = n.
+TEST(HybridRest, PolydisperseBedSleepsAndMatchesTdm) {
+  const int n = kSanitized ? 100 : 300;
+  const System<2> s = settling_box<2>(n, 20.0, 5, 0.5);
+  const double W = 0.2;
+  EdmSettings es;
+  es.end_time = 1.2;
+  const RunResult<2> rs = run_hybrid<2>(s, es, resting(0.01, 0.02));
+  ASSERT_EQ(rs.status, "ok") << rs.message;
+  const RunResult<2> ra = run_hybrid<2>(s, es, HybridSettings{});
+  ASSERT_EQ(ra.status, "ok") << ra.message;
+  TdmSettings ts;
+  ts.end_time = es.end_time;
+  ts.threads = 1;
+  const RunResult<2> rt = run_tdm<2>(s, ts);
+  ASSERT_EQ(rt.status, "ok") << rt.message;
+  const auto [Hs, ps] = bed_measure<2>(rs, W);
+  const auto [Ha, pa] = bed_measure<2>(ra, W);
+  const auto [Ht, pt] = bed_measure<2>(rt, W);
+  EXPECT_NEAR(Hs / Ha, 1.0, 0.01) << "rest rule " << Hs << " awake " << Ha;
+  EXPECT_NEAR(Hs / Ht, 1.0, 0.02) << "rest rule " << Hs << " tdm " << Ht;
+  EXPECT_EQ(static_cast<std::size_t>(std::count(rs.mode.begin(), rs.mode.end(), std::uint8_t{3})), s.size());
+  EXPECT_EQ(rs.hybrid.slept - rs.hybrid.woken, s.size());
+  EXPECT_LT(rs.hybrid.soft_particle_steps, 0.8 * ra.hybrid.soft_particle_steps);
+  ::testing::Test::RecordProperty("bed_height_rest_awake_tdm", fmt::format("{:.5g} {:.5g} {:.5g}", Hs, Ha, Ht));
+}
+
 // Two frictionless grains stacked on the floor (B exactly on top of A) fall asleep; a third grain
 // C slides along the floor into A and knocks it away. A wakes under C's push; B, whose support is
 // gone, wakes and falls to the floor (a sleeper is never left hanging).

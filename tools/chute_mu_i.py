@@ -36,6 +36,7 @@ from __future__ import annotations
 
 import argparse
 import csv
+import json
 import math
 import re
 import sys
@@ -247,7 +248,6 @@ def main() -> int:
         d = Path(a.runs) / f"{method}_{angle:g}"
         if a.plot_only:
             with open(d / "summary.json") as f:
-                import json
                 s = json.load(f)
             return job, s["status"], "", s
         run = run_matep(a.matep, SCENE, {"run.method": method, "run.end_time": a.end, "run.threads": a.threads,

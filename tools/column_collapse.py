@@ -25,6 +25,7 @@ from __future__ import annotations
 
 import argparse
 import csv
+import json
 import math
 import sys
 import tomllib
@@ -113,7 +114,6 @@ def one(matep, a_target: float, li: float, method: str, runs: Path, threads: int
     end = 0.6 + 6 * math.sqrt(h_i / G)
     out_dir = runs / f"{method}_a{a_target:g}"
     if plot_only:
-        import json
         with open(out_dir / "summary.json") as f:
             summary = json.load(f)
     else:

@@ -65,7 +65,8 @@ struct HybridStats {
   std::uint64_t by_cluster = 0;       //   recent collision partner of a particle that turned soft
   std::uint64_t by_capture = 0;       //   came within the skin of a soft particle
   std::uint64_t by_overlap = 0;       //   overlapping at t = 0
-  std::uint64_t to_hard = 0;          // releases soft -> hard
+  std::uint64_t to_hard = 0;          // releases soft -> hard, all reasons
+  std::uint64_t released_by_cost = 0; //   in a group whose collisions are cheaper as events
   std::uint64_t slept = 0;            // particles put to sleep (rest rule)
   std::uint64_t woken = 0;            // sleeping particles woken
   std::uint64_t substeps = 0;         // TDM substep events

@@ -516,11 +516,11 @@ void write_summary(const std::string& path, const SummaryInfo& info, const RunRe
   if (r.method == Method::Hybrid) {
     const HybridStats& h = r.hybrid;
     fmt::print(f, "  \"hybrid\": {{\"to_soft\": {}, \"by_stability\": {}, \"by_cost\": {}, \"by_cluster\": {}, "
-               "\"by_capture\": {}, \"by_overlap\": {}, \"to_hard\": {}, \"slept\": {}, \"woken\": {}, "
+               "\"by_capture\": {}, \"by_overlap\": {}, \"to_hard\": {}, \"released_by_cost\": {}, \"slept\": {}, \"woken\": {}, "
                "\"substeps\": {}, \"soft_particle_steps\": {}, \"max_soft\": {}, \"soft_at_end\": {}, "
                "\"stability\": {}, \"hysteresis\": {}, \"skin\": {}, \"cost_ratio\": {}, \"rest_speed\": {}, "
                "\"rest_time\": {}}},\n",
-               h.to_soft, h.by_stability, h.by_cost, h.by_cluster, h.by_capture, h.by_overlap, h.to_hard, h.slept,
+               h.to_soft, h.by_stability, h.by_cost, h.by_cluster, h.by_capture, h.by_overlap, h.to_hard, h.released_by_cost, h.slept,
                h.woken, h.substeps, h.soft_particle_steps, h.max_soft, h.soft_at_end, json_number(h.stability),
                json_number(h.hysteresis), json_number(h.skin), json_number(h.cost_ratio), json_number(h.rest_speed),
                json_number(h.rest_time));

@@ -243,6 +243,12 @@ class HybridEngine final : public edm::EdmCore<D, CalendarQueue, HybridEngine<D>
     rest_.rest_speed2 = rest_speed2_;
     // Clusters are checked four times per rest time.
     sleep_every_ = std::max<std::uint64_t>(1, static_cast<std::uint64_t>(0.25 * rest_time_ / h_));
+    // Release by cost: rates over at least k t_c, checked eight times as often while grains go,
+    // down to once per k t_c while none can.
+    cost_quiet_ = kstab_ * plan_.contact_time;
+    cost_every_max_ = std::max<std::uint64_t>(1, static_cast<std::uint64_t>(cost_quiet_ / h_));
+    cost_every_min_ = std::max<std::uint64_t>(1, cost_every_max_ / 8);
+    cost_every_ = cost_every_min_;
     substep_id_ = this->add_system_event("substep", [this](double t) {
       substep(t);
       return status_.empty();
@@ -283,6 +289,10 @@ class HybridEngine final : public edm::EdmCore<D, CalendarQueue, HybridEngine<D>
     }
     last_contact_.assign(N_, 0.0);
     quiet_checks_.assign(N_, 0);
+    begun_n_.assign(N_, 0);
+    rate_t0_.assign(N_, 0.0);
+    cand_.assign(N_, 0);
+    gslot_.assign(N_, 0);
     slot_.assign(N_, -1);
     touching_.assign(N_, 0);
     near_.assign(N_, 0);
@@ -449,6 +459,8 @@ class HybridEngine final : public edm::EdmCore<D, CalendarQueue, HybridEngine<D>
     }
     last_contact_[i] = t;
     quiet_checks_[i] = 0;
+    begun_n_[i] = 0;
+    rate_t0_[i] = t;
     switch_.forget_interval(i);
     ++hstats_.to_soft;
     switch (reason) {
@@ -479,6 +491,90 @@ class HybridEngine final : public edm::EdmCore<D, CalendarQueue, HybridEngine<D>
     ++hstats_.to_hard;
     log_switch(i, t, EventKind::ToHard);
     predict(i, t);
+  }
+
+  // Release by cost: soft grains whose collisions are cheaper as events return to EDM together.
+  // A candidate is an awake soft grain that has touched nothing for the release hysteresis and
+  // has begun contacts, over its recent window (at least k t_c), at under half the cost
+  // crossover rate 1 / (cost_ratio h) that turns a hard grain soft (the factor 2 is the rule's
+  // hysteresis). A hard grain may not lie within the capture skin of a soft one, so a candidate
+  // with a soft or sleeping grain that is not a candidate within the skin stays, and so on
+  // through the chain (fixed grains do not hold: hard grains meet them in EDM); the rest go hard.
+  // The single-grain release above is the case of a candidate with no soft grain in its skin; this
+  // one frees a dense gas whose grains are all within each other's skins. The window is halved
+  // (count and span) once it exceeds 4 k t_c, so that it follows a cooling or thinning flow.
+  void release_by_cost(double t) {
+    const double rmax = 0.5 / (hset_.cost_ratio * h_);
+    group_.clear();
+    for (const int i : soft_) {
+      double span = t - rate_t0_[i];
+      if (span > 4.0 * cost_quiet_) {
+        begun_n_[i] /= 2;
+        span *= 0.5;
+        rate_t0_[i] = t - span;
+      }
+      if (!(span >= cost_quiet_)) continue;
+      if (t - last_contact_[i] >= hyst_ && static_cast<double>(begun_n_[i]) < rmax * span) {
+        cand_[i] = 1;
+        group_.push_back(i);
+      }
+    }
+    if (group_.empty()) {
+      cost_every_ = std::min(2 * cost_every_, cost_every_max_);  // nothing to release: look less often
+      return;
+    }
+    // The grains that hold a candidate: pairs within the skin of a candidate and a grain that
+    // stays (near_ lists both ways; held_ is the queue), then the chain through candidates.
+    auto holds = [&](std::uint32_t k) { return !cand_[k] && mode_[k] != kFixed; };
+    near_pairs_.clear();
+    held_.clear();
+    pairs_.for_each([&](const PairEntry& e) {
+      if (!cand_[e.i] && !cand_[e.j]) return;
+      Vec<D> dx = hot_[e.i].x - hot_[e.j].x;
+      min_image(dx);
+      const double cut = hot_[e.i].R + hot_[e.j].R + skin_;
+      if (dx.squaredNorm() >= cut * cut) return;
+      if (cand_[e.i] && cand_[e.j]) {
+        near_pairs_.push_back({e.i, e.j});
+      } else if (cand_[e.i] && holds(e.j)) {
+        held_.push_back(e.i);
+      } else if (cand_[e.j] && holds(e.i)) {
+        held_.push_back(e.j);
+      }
+    });
+    if (!held_.empty()) {
+      // Adjacency of the candidates (CSR over group_'s order) for the spread of the hold.
+      for (std::size_t k = 0; k < group_.size(); ++k) gslot_[group_[k]] = static_cast<int>(k);
+      gstart_.assign(group_.size() + 1, 0);
+      for (const auto& [a, b] : near_pairs_) {
+        ++gstart_[gslot_[a] + 1];
+        ++gstart_[gslot_[b] + 1];
+      }
+      for (std::size_t k = 0; k < group_.size(); ++k) gstart_[k + 1] += gstart_[k];
+      gadj_.resize(gstart_.back());
+      gfill_.assign(gstart_.begin(), gstart_.end() - 1);
+      for (const auto& [a, b] : near_pairs_) {
+        gadj_[gfill_[gslot_[a]]++] = b;
+        gadj_[gfill_[gslot_[b]]++] = a;
+      }
+      for (std::size_t q = 0; q < held_.size(); ++q) {
+        const std::uint32_t k = held_[q];
+        if (!cand_[k]) continue;
+        cand_[k] = 0;
+        for (int p = gstart_[gslot_[k]]; p < gstart_[gslot_[k] + 1]; ++p)
+          if (cand_[gadj_[p]]) held_.push_back(gadj_[p]);
+      }
+    }
+    std::size_t released = 0;
+    for (const int i : group_) {
+      if (cand_[i]) {
+        release(i, t);
+        ++released;
+      }
+      cand_[i] = 0;
+    }
+    hstats_.released_by_cost += released;
+    cost_every_ = released > 0 ? cost_every_min_ : std::min(2 * cost_every_, cost_every_max_);
   }
 
   // Pair and wall entries of soft i with the soft particles (and walls) within the skin.
@@ -761,10 +857,17 @@ class HybridEngine final : public edm::EdmCore<D, CalendarQueue, HybridEngine<D>
     Hot<D>* const HOT = hot_.data();
     const Vec<D>* const BLO = cblo_.data();
     const Vec<D>* const BHI = cbhi_.data();
+    // (Raw pointers: the stores would otherwise make the compiler reload every vector's data
+    // pointer at each particle.)
+    Vec<D>* const FF = f_.data();
+    Vec<D>* const AC = acc_.data();
+    Vec<D>* const VH = vh_.data();
+    const Vec<D>* const X0 = x0_.data();
+    const double* const MINV = minv_.data();
     bool dirty = false;
     const bool outlets = !sys_.outlets.empty();
     for (const int i : soft_) {
-      dirty |= soft::kick_drift<D>(f_[i], acc_[i], vh_[i], HOT[i].x, x0_[i], minv_[i], g, h, lim2);
+      dirty |= soft::kick_drift<D>(FF[i], AC[i], VH[i], HOT[i].x, X0[i], MINV[i], g, h, lim2);
       HOT[i].t = t;
       const Vec<D>& x = HOT[i].x;
       if (outlets) [[unlikely]] {
@@ -809,7 +912,7 @@ class HybridEngine final : public edm::EdmCore<D, CalendarQueue, HybridEngine<D>
     double* const LAST = last_contact_.data();
     freed_.clear();
     for (const int i : soft_) {
-      const Vec<D> v = soft::full_step<D>(VH5[i], F5[i], minv_[i], g, hdt);
+      const Vec<D> v = soft::full_step<D>(VH5[i], F5[i], MINV[i], g, hdt);
       HOT[i].v = v;
       vmax2 = std::max(vmax2, v.squaredNorm());
       if (TOUCHING[i]) LAST[i] = t;
@@ -819,6 +922,10 @@ class HybridEngine final : public edm::EdmCore<D, CalendarQueue, HybridEngine<D>
     if (rot_)
       for (const int i : soft_) sys_.w[i] = wh_[i] + hdt * (tq_[i] * iinv_[i]);
     for (const int i : freed_) release(i, t);
+    if (++since_cost_check_ >= cost_every_) {
+      since_cost_check_ = 0;
+      release_by_cost(t);
+    }
     vsoft_max_ = std::sqrt(vmax2);
     if (sleeping_ && ++since_sleep_check_ >= sleep_every_) {
       since_sleep_check_ = 0;
@@ -981,7 +1088,12 @@ class HybridEngine final : public edm::EdmCore<D, CalendarQueue, HybridEngine<D>
 
     bool onset() const { return onset_ok; }
     const SoftContact& contact(std::uint32_t e, std::uint32_t, std::uint32_t, SoftContact&) const { return C[cidx[e]]; }
-    void began() { ++begun; }
+    std::uint32_t* BEGUN = nullptr;  // contacts begun per particle since its last cost check
+    void began(std::uint32_t i, std::uint32_t j) {
+      ++begun;
+      ++BEGUN[i];
+      ++BEGUN[j];
+    }
     void opened(std::uint32_t i, std::uint32_t j) {
       // A sleeper that loses a contact wakes (its support may be gone).
       if (sleepers) {
@@ -1024,6 +1136,7 @@ class HybridEngine final : public edm::EdmCore<D, CalendarQueue, HybridEngine<D>
     const bool onset_ok = wall_t_ > 0.0;
     SoftPolicy<Rot, Periodic> pol{ctab_.data(), pairs_.c.data(), touching_.data(), near_.data(), mode_.data(),
                         fz_lost_.data(), skin_, rest_, onset_ok, asleep_ > 0};
+    pol.BEGUN = begun_n_.data();
     soft::pair_rows<D, Law, Rot, Roll>(soft::Records<D, Hot<D>>{hot_.data()}, soft::bodies_of(vh_, acc_, f_, wh_, alpha_, tq_),
                                  pairs_.as_rows(shifts_.data()), 0, static_cast<std::uint32_t>(pairs_.rows()), h, pol);
     std::uint64_t begun = pol.begun;
@@ -1038,6 +1151,7 @@ class HybridEngine final : public edm::EdmCore<D, CalendarQueue, HybridEngine<D>
                                                e.xi, began, f_[i], Rot ? tq_[i] : tq_none, wall_mr(e));
       });
       begun += began;
+      begun_n_[i] += began;
       if (c.delta > 0.0) {
         touching_[i] = 1;
         wall_loads_.add(static_cast<std::size_t>(e.w), anchors_[e.w], c.point, -h * c.force);
@@ -1407,6 +1521,17 @@ class HybridEngine final : public edm::EdmCore<D, CalendarQueue, HybridEngine<D>
   bool sleeping_ = false;                 // rest rule on
   double rest_speed2_ = 0.0;
   std::uint64_t sleep_every_ = 1, since_sleep_check_ = 0;
+  double cost_quiet_ = 0.0;                            // release_by_cost: shortest rate window
+  std::uint64_t cost_every_ = 1, since_cost_check_ = 0;  // ... and its cadence in substeps
+  std::vector<std::uint32_t> begun_n_;  // contacts begun per soft particle since rate_t0_
+  std::vector<double> rate_t0_;
+  std::vector<std::uint8_t> cand_;      // release_by_cost's candidates
+  std::vector<int> group_;
+  std::uint64_t cost_every_min_ = 1, cost_every_max_ = 1;
+  std::vector<std::pair<std::uint32_t, std::uint32_t>> near_pairs_;  // candidates within the skin
+  std::vector<std::uint32_t> held_;
+  std::vector<int> gslot_, gstart_, gfill_;
+  std::vector<std::uint32_t> gadj_;
   // Sleepers (rest rule): static net contact force at sleep and wake threshold; for the watched
   // ones (an awake neighbour in pairs_), the constant force and torque of their sleeping contacts.
   std::vector<Vec<D>> fz_base_, fz_mix_;

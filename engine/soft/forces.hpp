@@ -108,7 +108,7 @@ template <int D, NormalLaw Law>
 //   static constexpr bool kSleepers, kNear, kVirial;
 //   bool onset() const;                       // may a contact begun now get its onset weight?
 //   const SoftContact& contact(e, i, j, SoftContact& scratch);
-//   void began();  void opened(i, j);  void overlap(delta, Rs);
+//   void began(i, j);  void opened(i, j);  void overlap(delta, Rs);
 //   void touching(i, j);  void near(i, j);  double near_skin() const;
 //   bool any_asleep() const;  bool asleep(i) const;  bool approached(un) const;  void wake(k);
 //   void partner(f, tq, j, F, tj);   (j receives -F and the torque tj; f, tq: the Bodies' arrays)
@@ -173,7 +173,7 @@ template <int D, NormalLaw Law, bool Rot, bool Roll, class Pos, class Policy>
       const bool fresh = !TOUCH[e];
       if (fresh) {
         TOUCH[e] = 1;
-        pol.began();
+        pol.began(i, j);
         if (onset_ok) onset = onset_fraction(delta, -(vhi - V[j]).dot(n), h);
       }
       pol.overlap(delta, Rs);

@@ -660,7 +660,7 @@ struct TdmEngine<D>::RangePolicy {
     scratch = eng.pair_coeffs(i, j);
     return scratch;
   }
-  void began() { ++acc.new_pair; }
+  void began(std::uint32_t, std::uint32_t) { ++acc.new_pair; }
   void opened(std::uint32_t, std::uint32_t) {}
   void overlap(double delta, double Rs) {
     if (delta > acc.max_rel * Rs) acc.max_rel = delta / Rs;

@@ -73,29 +73,66 @@ TEST(SwitchRule, TheWindowIsAskedOnlyWithinTheHysteresis) {
 
 TEST(SwitchRule, CostSwitchesWhenTheSmoothedIntervalFallsBelowTheCrossover) {
   SwitchRule r = rule();
-  // t_c tiny: the stability rule never fires. The first finite interval starts the average; each
-  // later one is averaged with weight 1/2: 3 ms, then 0.5 ms gives 1.75 ms, 1.125 ms, 0.8125 ms
-  // (below the 1 ms crossover: cost).
+  // t_c tiny: the stability rule never fires. The average is the mean of the intervals so far:
+  // 3 ms, then k intervals of 0.5 ms give (3 + 0.5 k) / (k + 1) ms, below the 1 ms crossover from
+  // k = 5 on (k = 4: exactly 1 ms, not below).
   auto tiny = [] { return 1e-9; };
   double t = 0.0, last = -kNever;
   EXPECT_EQ(r.pair(0, 1, t, last, last, tiny), Switch::Stay);  // no interval yet
+  EXPECT_EQ(r.interval(0), kNever);
   last = t;
   t += 3e-3;
   EXPECT_EQ(r.pair(0, 1, t, last, last, tiny), Switch::Stay);
   EXPECT_DOUBLE_EQ(r.interval(0), 3e-3);
-  for (const double expected : {1.75e-3, 1.125e-3}) {
+  for (int k = 1; k <= 5; ++k) {
     last = t;
     t += 0.5e-3;
-    EXPECT_EQ(r.pair(0, 1, t, last, last, tiny), Switch::Stay);
-    EXPECT_NEAR(r.interval(0), expected, 1e-15);
+    EXPECT_EQ(r.pair(0, 1, t, last, last, tiny), k < 5 ? Switch::Stay : Switch::Cost) << k;
+    EXPECT_NEAR(r.interval(0), (3e-3 + 0.5e-3 * k) / (k + 1), 1e-15) << k;
   }
+  // From the 8th interval on, each moves the average by 1/8 of the difference.
+  for (int k = 6; k <= 7; ++k) {
+    last = t;
+    t += 0.5e-3;
+    r.pair(0, 1, t, last, last, tiny);
+  }
+  const double before = r.interval(0);
   last = t;
-  t += 0.5e-3;
-  EXPECT_EQ(r.pair(0, 1, t, last, last, tiny), Switch::Cost);
-  EXPECT_NEAR(r.interval(0), 0.8125e-3, 1e-15);
-  // A particle that returned hard starts its average again.
+  t += 1.3e-3;
+  r.pair(0, 1, t, last, last, tiny);
+  EXPECT_NEAR(r.interval(0), before + (1.3e-3 - before) / 8.0, 1e-15);
+  // A particle that returned hard starts its average again, and three short intervals (a grain
+  // released next to others) are not yet a rate: the cost rule counts from the fourth.
   r.forget(0);
+  r.forget(1);  // (its partner too: either one's average can switch the pair)
   EXPECT_EQ(r.interval(0), kNever);
+  last = -kNever;
+  for (int k = 0; k <= 4; ++k) {
+    EXPECT_EQ(r.pair(0, 1, t, last, last, tiny), k < 4 ? Switch::Stay : Switch::Cost) << k;
+    last = t;
+    t += 1e-4;
+  }
+}
+
+TEST(SwitchRule, RapidCollisionsWhoseIntervalsGrowAreADenseGasNotACollapse) {
+  SwitchRule r = rule();
+  // Every interval within the window k t_c = 0.02, but each longer than the one before: no run
+  // builds up (a dense gas). Then two shrinking ones: the run of three completes.
+  double t = 1.0, last = -kNever;
+  r.pair(0, 1, t, last, last, tc);
+  last = t;
+  for (const double dt : {0.010, 0.012, 0.014, 0.016, 0.018}) {
+    t += dt;
+    EXPECT_EQ(r.pair(0, 1, t, last, last, tc), Switch::Stay) << dt;
+    EXPECT_EQ(r.rapid_count(0), 1) << dt;
+    last = t;
+  }
+  t += 0.017;
+  EXPECT_EQ(r.pair(0, 1, t, last, last, tc), Switch::Stay);
+  EXPECT_EQ(r.rapid_count(0), 2);
+  last = t;
+  t += 0.016;
+  EXPECT_EQ(r.pair(0, 1, t, last, last, tc), Switch::Stability);
 }
 
 TEST(SwitchRule, RestingOnAWallIsUnstableAndClusterFollowsRecentPartners) {

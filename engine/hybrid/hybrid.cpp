@@ -293,6 +293,7 @@ class HybridEngine final : public edm::EdmCore<D, CalendarQueue, HybridEngine<D>
     rate_t0_.assign(N_, 0.0);
     cand_.assign(N_, 0);
     gslot_.assign(N_, 0);
+    joined_by_.assign(N_, kByOverlap);
     slot_.assign(N_, -1);
     touching_.assign(N_, 0);
     near_.assign(N_, 0);
@@ -461,6 +462,7 @@ class HybridEngine final : public edm::EdmCore<D, CalendarQueue, HybridEngine<D>
     quiet_checks_[i] = 0;
     begun_n_[i] = 0;
     rate_t0_[i] = t;
+    joined_by_[i] = reason;
     switch_.forget_interval(i);
     ++hstats_.to_soft;
     switch (reason) {
@@ -483,7 +485,7 @@ class HybridEngine final : public edm::EdmCore<D, CalendarQueue, HybridEngine<D>
     slot_[soft_[s]] = s;
     soft_.pop_back();
     slot_[i] = -1;
-    dirty_ = true;
+    purge_ = true;  // its list entries go at the end of the substep's releases (purge_hard)
     hot_[i].t = t;
     cold_[i].last = -kNever;  // its collisions as a soft particle do not count for the rules
     switch_.forget(i);
@@ -494,8 +496,8 @@ class HybridEngine final : public edm::EdmCore<D, CalendarQueue, HybridEngine<D>
   }
 
   // Release by cost: soft grains whose collisions are cheaper as events return to EDM together.
-  // A candidate is an awake soft grain that has touched nothing for the release hysteresis and
-  // has begun contacts, over its recent window (at least k t_c), at under half the cost
+  // A candidate is an awake soft grain that touches nothing (one that turned soft by the
+  // stability rule: for the release hysteresis) and has begun contacts, over its recent window (at least k t_c), at under half the cost
   // crossover rate 1 / (cost_ratio h) that turns a hard grain soft (the factor 2 is the rule's
   // hysteresis). A hard grain may not lie within the capture skin of a soft one, so a candidate
   // with a soft or sleeping grain that is not a candidate within the skin stays, and so on
@@ -514,7 +516,12 @@ class HybridEngine final : public edm::EdmCore<D, CalendarQueue, HybridEngine<D>
         rate_t0_[i] = t - span;
       }
       if (!(span >= cost_quiet_)) continue;
-      if (t - last_contact_[i] >= hyst_ && static_cast<double>(begun_n_[i]) < rmax * span) {
+      // A grain that turned soft by the stability rule (or with its cluster) must first stay
+      // contact-free for the release hysteresis (a bouncing sequence would otherwise come back at
+      // once); the others may go as soon as they touch nothing.
+      const bool unstable = joined_by_[i] == kByStability || joined_by_[i] == kByCluster;
+      const bool quiet = unstable ? t - last_contact_[i] >= hyst_ : last_contact_[i] < t;
+      if (quiet && static_cast<double>(begun_n_[i]) < rmax * span) {
         cand_[i] = 1;
         group_.push_back(i);
       }
@@ -575,6 +582,18 @@ class HybridEngine final : public edm::EdmCore<D, CalendarQueue, HybridEngine<D>
     }
     hstats_.released_by_cost += released;
     cost_every_ = released > 0 ? cost_every_min_ : std::min(2 * cost_every_, cost_every_max_);
+  }
+
+  // The list entries of the grains released at this substep leave the lists (they touch nothing:
+  // no spring is lost). A pass over the entries, where a rebuild would also search the grid and
+  // carry every spring over.
+  void purge_hard() {
+    purge_ = false;
+    pairs_.filter([&](const PairEntry& e) { return mode_[e.i] != kHard && mode_[e.j] != kHard; });
+    std::size_t kw = 0;
+    for (const auto& e : we_)
+      if (mode_[e.i] != kHard) we_[kw++] = e;
+    we_.resize(kw);
   }
 
   // Pair and wall entries of soft i with the soft particles (and walls) within the skin.
@@ -926,6 +945,7 @@ class HybridEngine final : public edm::EdmCore<D, CalendarQueue, HybridEngine<D>
       since_cost_check_ = 0;
       release_by_cost(t);
     }
+    if (purge_) purge_hard();
     vsoft_max_ = std::sqrt(vmax2);
     if (sleeping_ && ++since_sleep_check_ >= sleep_every_) {
       since_sleep_check_ = 0;
@@ -1493,6 +1513,7 @@ class HybridEngine final : public edm::EdmCore<D, CalendarQueue, HybridEngine<D>
   double clock_t0_ = 0.0;
   std::uint64_t clock_n_ = 0;
   bool dirty_ = true;
+  bool purge_ = false;  // grains released at this substep still have list entries
   std::uint64_t asleep_ = 0;
   std::uint64_t hstats_soft_begun_ = 0;
   HybridStats hstats_;
@@ -1526,6 +1547,7 @@ class HybridEngine final : public edm::EdmCore<D, CalendarQueue, HybridEngine<D>
   std::vector<std::uint32_t> begun_n_;  // contacts begun per soft particle since rate_t0_
   std::vector<double> rate_t0_;
   std::vector<std::uint8_t> cand_;      // release_by_cost's candidates
+  std::vector<std::uint8_t> joined_by_; // why each soft grain turned soft (kByStability ...)
   std::vector<int> group_;
   std::uint64_t cost_every_min_ = 1, cost_every_max_ = 1;
   std::vector<std::pair<std::uint32_t, std::uint32_t>> near_pairs_;  // candidates within the skin

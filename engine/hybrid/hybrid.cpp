@@ -497,9 +497,9 @@ class HybridEngine final : public edm::EdmCore<D, CalendarQueue, HybridEngine<D>
 
   // Release by cost: soft grains whose collisions are cheaper as events return to EDM together.
   // A candidate is an awake soft grain that touches nothing (one that turned soft by the
-  // stability rule: for the release hysteresis) and has begun contacts, over its recent window (at least k t_c), at under half the cost
-  // crossover rate 1 / (cost_ratio h) that turns a hard grain soft (the factor 2 is the rule's
-  // hysteresis). A hard grain may not lie within the capture skin of a soft one, so a candidate
+  // stability rule: for the release hysteresis) and has begun contacts, over its recent window
+  // (at least k t_c), at under half the cost crossover rate 1 / (cost_ratio h) that turns a hard
+  // grain soft (the factor 2 is the rule's hysteresis). A hard grain may not lie within the capture skin of a soft one, so a candidate
   // with a soft or sleeping grain that is not a candidate within the skin stays, and so on
   // through the chain (fixed grains do not hold: hard grains meet them in EDM); the rest go hard.
   // The single-grain release above is the case of a candidate with no soft grain in its skin; this
@@ -530,8 +530,8 @@ class HybridEngine final : public edm::EdmCore<D, CalendarQueue, HybridEngine<D>
       cost_every_ = std::min(2 * cost_every_, cost_every_max_);  // nothing to release: look less often
       return;
     }
-    // The grains that hold a candidate: pairs within the skin of a candidate and a grain that
-    // stays (near_ lists both ways; held_ is the queue), then the chain through candidates.
+    // The candidates held: those within the skin of a grain that stays (held_, the queue), then
+    // the chain through candidates within each other's skins (near_pairs_).
     auto holds = [&](std::uint32_t k) { return !cand_[k] && mode_[k] != kFixed; };
     near_pairs_.clear();
     held_.clear();

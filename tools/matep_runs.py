@@ -11,6 +11,7 @@ from __future__ import annotations
 import csv
 import json
 import math
+import os
 import re
 import shutil
 import statistics
@@ -63,12 +64,21 @@ class Run:
             return [{k: float(v) for k, v in row.items()} for row in csv.DictReader(f)]
 
 
-def run_matep(matep, scene, sets: dict, out_dir, timeout=None) -> Run:
+def run_matep(matep, scene, sets: dict, out_dir, timeout=None, layout=None) -> Run:
+    """layout: None, or an integer k: the run gets a memory layout of its own, the same at every
+    call with the same k (address randomisation off through util-linux's setarch where it works,
+    and k * 300 bytes more environment, which moves the stack). On the development machine the
+    same run's wall time varied by up to 40 % with where its stack landed (charts/README.md)."""
     out_dir = Path(out_dir)
     shutil.rmtree(out_dir, ignore_errors=True)
     cmd = [str(matep), "run", str(scene), *set_args(sets), "--out", str(out_dir), "--quiet"]
+    env = None
+    if layout is not None:
+        env = dict(os.environ, MATEP_LAYOUT_PAD="x" * (300 * int(layout)))
+        if _setarch_works():
+            cmd = ["setarch", "-R", *cmd]
     try:
-        p = subprocess.run(cmd, capture_output=True, text=True, timeout=timeout)
+        p = subprocess.run(cmd, capture_output=True, text=True, timeout=timeout, env=env)
     except subprocess.TimeoutExpired:
         return Run(None, "timeout", f"no result within {timeout} s", None, out_dir)
     err = " ".join(p.stderr.strip().splitlines()[-1:]) if p.stderr.strip() else ""
@@ -83,12 +93,25 @@ def run_matep(matep, scene, sets: dict, out_dir, timeout=None) -> Run:
     return Run(p.returncode, "failed", err or f"exit status {p.returncode}", None, out_dir)
 
 
+_SETARCH = None
+
+
+def _setarch_works() -> bool:
+    global _SETARCH
+    if _SETARCH is None:
+        exe = shutil.which("setarch")
+        _SETARCH = bool(exe) and subprocess.run([exe, "-R", "true"], capture_output=True).returncode == 0
+    return _SETARCH
+
+
 def run_repeated(matep, scene, sets, out_dir, repeat=1, timeout=None) -> Run:
     """Runs `repeat` times (same deterministic scene) and keeps the last run with the median of
-    the wall times: the machines are shared and noisy."""
-    runs = [run_matep(matep, scene, sets, out_dir, timeout)]
+    the wall times: the machines are shared and noisy. With repeat > 1 each run has a memory
+    layout of its own (run_matep's `layout`), the same ones for every scene and version."""
+    lay = (lambda k: k) if repeat > 1 else (lambda k: None)
+    runs = [run_matep(matep, scene, sets, out_dir, timeout, lay(0))]
     while len(runs) < repeat and runs[0].summary is not None:
-        runs.append(run_matep(matep, scene, sets, out_dir, timeout))
+        runs.append(run_matep(matep, scene, sets, out_dir, timeout, lay(len(runs))))
     r = runs[-1]
     if r.summary is not None and len(runs) > 1:
         r.summary = dict(r.summary)

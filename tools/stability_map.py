@@ -6,7 +6,9 @@ run with every method; each cell is marked stable, collapse (EDM's inelastic col
     /usr/bin/python3 tools/stability_map.py --matep build/matep --out charts/
 
 writes charts/stability_map.csv and charts/stability_map.png (one panel per method and step).
---quick runs a 2 x 2 map of 64 particles (a second or two; the test suite's mode).
+--quick runs a 2 x 2 map of 64 particles (a second or two; the test suite's mode). --repeat N runs
+each cell N times, each with a memory layout of its own (tools/matep_runs.py run_matep), and keeps
+the median wall time: a single run's time varies by up to 40 % with the layout (charts/README.md).
 
 The case: 512 unit spheres (unit mass) on a simple cubic lattice in a periodic cube sized for the
 packing fraction (a lattice reaches phi = 0.5; random placement stops at 0.384), Maxwellian
@@ -36,7 +38,7 @@ import tempfile
 from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from matep_runs import check_soft, import_pyplot, run_matep, write_csv  # noqa: E402
+from matep_runs import check_soft, import_pyplot, run_repeated, write_csv  # noqa: E402
 
 FIELDS = ["method", "setting", "e", "phi", "status", "outcome", "wall_seconds", "time_reached", "dt",
           "max_stable_dt", "max_overlap_relative", "message"]
@@ -84,7 +86,7 @@ thermo_interval = 0
 """
 
 
-def sweep(matep, work: Path, es, phis, count, end, log) -> list[dict]:
+def sweep(matep, work: Path, es, phis, count, end, log, repeat=1) -> list[dict]:
     scene = work / "cooling_gas.toml"
     scene.write_text(SCENE.format(end=repr(float(end)), count=count))
     rows = []
@@ -102,7 +104,7 @@ def sweep(matep, work: Path, es, phis, count, end, log) -> list[dict]:
                     ("hybrid", "default", {**base, "run.method": "hybrid", "run.threads": 1}, math.nan)]
             for method, setting, sets, dt in runs:
                 folder = work / f"{method}_{setting.replace(' ', '_').replace('/', '_')}_e{e}_phi{phi}"
-                r = run_matep(matep, scene, sets, folder, timeout=RUN_TIMEOUT)
+                r = run_repeated(matep, scene, sets, folder, repeat, timeout=RUN_TIMEOUT)
                 s = r.summary or {}
                 row = {"method": method, "setting": setting, "e": float(e), "phi": float(phi), "status": r.status,
                        "outcome": OUTCOME.get(r.status, "failed"), "wall_seconds": r.wall_seconds,
@@ -173,6 +175,9 @@ def main(argv=None):
     ap.add_argument("--quick", action="store_true", help="a 2 x 2 map of 64 particles (the test suite's mode)")
     ap.add_argument("--work", default=None, help="keep the runs' outputs in this folder (default: a temporary one)")
     ap.add_argument("--plot-only", action="store_true", help="redraw the PNG from the CSV in --out, running nothing")
+    ap.add_argument("--repeat", type=int, default=1,
+                    help="runs per cell, each with a memory layout of its own; the wall time is their median "
+                         "(use 3 or more to compare versions: a single run varies by up to 40 %%)")
     args = ap.parse_args(argv)
     es, phis, count, end = QUICK if args.quick else FULL
     out = Path(args.out)
@@ -185,6 +190,8 @@ def main(argv=None):
         plot(rows, es, phis, png_path, subtitle)
         print(f"wrote {png_path}")
         return
+    if args.repeat < 1:
+        ap.error(f"--repeat {args.repeat}: must be at least 1")
     matep = Path(args.matep).resolve()
     if not matep.exists():
         ap.error(f"--matep {args.matep}: no such file (build it: cmake --build build --target matep)")
@@ -192,7 +199,7 @@ def main(argv=None):
     with tempfile.TemporaryDirectory(prefix="matep_map_") as tmp:
         work = Path(args.work) if args.work else Path(tmp)
         work.mkdir(parents=True, exist_ok=True)
-        rows = sweep(matep, work, es, phis, count, end, lambda s: print(s, flush=True))
+        rows = sweep(matep, work, es, phis, count, end, lambda s: print(s, flush=True), args.repeat)
     write_csv(csv_path, FIELDS, rows)
     plot(rows, es, phis, png_path, subtitle)
     print(f"wrote {csv_path} and {png_path}")

@@ -7,6 +7,7 @@
 #include <cmath>
 #include <numeric>
 #include <random>
+#include <tuple>
 
 #include <fmt/format.h>
 
@@ -483,46 +484,67 @@ HybridSettings resting(double speed, double time) {
   return h;
 }
 
+// A bed settled three ways from the same start: the hybrid with the rest rule, the hybrid
+// awake, and pure TDM (one thread), with each bed's height and packing (bed_measure, width W).
+template <int D>
+struct ThreeBeds {
+  RunResult<D> rest, awake, tdm;
+  double Hs = 0.0, ps = 0.0, Ha = 0.0, pa = 0.0, Ht = 0.0, pt = 0.0;
+};
+template <int D>
+ThreeBeds<D> settle_three_ways(const System<D>& s, double W, double end_time) {
+  ThreeBeds<D> b;
+  EdmSettings es;
+  es.end_time = end_time;
+  b.rest = run_hybrid<D>(s, es, resting(0.01, 0.02));
+  b.awake = run_hybrid<D>(s, es, HybridSettings{});
+  TdmSettings ts;
+  ts.end_time = end_time;
+  ts.threads = 1;
+  b.tdm = run_tdm<D>(s, ts);
+  std::tie(b.Hs, b.ps) = bed_measure<D>(b.rest, W);
+  std::tie(b.Ha, b.pa) = bed_measure<D>(b.awake, W);
+  std::tie(b.Ht, b.pt) = bed_measure<D>(b.tdm, W);
+  return b;
+}
+
+// Every grain of the rest-rule bed asleep at the end (slept - woken = n), and the rule saved soft
+// particle-steps.
+template <int D>
+void expect_all_asleep(const ThreeBeds<D>& b, std::size_t n) {
+  EXPECT_EQ(static_cast<std::size_t>(std::count(b.rest.mode.begin(), b.rest.mode.end(), std::uint8_t{3})), n);
+  EXPECT_EQ(b.rest.hybrid.slept - b.rest.hybrid.woken, n);
+  EXPECT_LT(b.rest.hybrid.soft_particle_steps, 0.8 * b.awake.hybrid.soft_particle_steps);
+  ::testing::Test::RecordProperty("bed_height_rest_awake_tdm", fmt::format("{:.5g} {:.5g} {:.5g}", b.Hs, b.Ha, b.Ht));
+}
+
 // A frictional 3D bed (Hertz-Mindlin, mu = 0.5) settling with the rest rule: its grains fall
 // asleep one by one as they come to rest, the bed matches pure TDM, and the substeps stop.
 TEST(HybridRest, SleepingBedMatchesTdmAndStopsTheSubsteps) {
   const int n = kSanitized ? 150 : 500;
   const System<3> s = settling_box<3>(n, 6.0, 11, 0.5);
-  const double W = 0.06;
-  EdmSettings es;
   // The last grains fall asleep between 0.75 and 0.95 s, depending on the seed and on round-off
   // (measured with seeds 11-14: at 0.8 s up to 5 of 500 were still settling): 1.2 s leaves margin.
-  es.end_time = 1.2;
-  const RunResult<3> rs = run_hybrid<3>(s, es, resting(0.01, 0.02));
-  ASSERT_EQ(rs.status, "ok") << rs.message;
-  const RunResult<3> ra = run_hybrid<3>(s, es, HybridSettings{});
-  ASSERT_EQ(ra.status, "ok") << ra.message;
-  TdmSettings ts;
-  ts.end_time = es.end_time;
-  ts.threads = 1;
-  const RunResult<3> rt = run_tdm<3>(s, ts);
-  ASSERT_EQ(rt.status, "ok") << rt.message;
-  const auto [Hs, ps] = bed_measure<3>(rs, W);
-  const auto [Ha, pa] = bed_measure<3>(ra, W);
-  const auto [Ht, pt] = bed_measure<3>(rt, W);
+  const ThreeBeds<3> b = settle_three_ways<3>(s, 0.06, 1.2);
+  ASSERT_EQ(b.rest.status, "ok") << b.rest.message;
+  ASSERT_EQ(b.awake.status, "ok") << b.awake.message;
+  ASSERT_EQ(b.tdm.status, "ok") << b.tdm.message;
   // The rest rule changes the bed by much less than 1 % (measured: +0.15 %). Against pure TDM this
   // narrow frictional bed differs by 1.3 % without the rule and 1.5 % with it: a frictional random
   // packing keeps the history of its preparation, here the rough hard collisions of the falling
   // grains (the 1 % beds, HybridBed above, pass).
-  EXPECT_NEAR(Hs / Ha, 1.0, 0.005) << "rest rule " << Hs << " awake " << Ha;
-  EXPECT_NEAR(ps / pa, 1.0, 0.005);
-  EXPECT_NEAR(Hs / Ht, 1.0, 0.02) << "rest rule " << Hs << " tdm " << Ht;
+  EXPECT_NEAR(b.Hs / b.Ha, 1.0, 0.005) << "rest rule " << b.Hs << " awake " << b.Ha;
+  EXPECT_NEAR(b.ps / b.pa, 1.0, 0.005);
+  EXPECT_NEAR(b.Hs / b.Ht, 1.0, 0.02) << "rest rule " << b.Hs << " tdm " << b.Ht;
   // Every grain asleep at the end, at rest; no substep after the last one fell asleep.
-  EXPECT_EQ(static_cast<std::size_t>(std::count(rs.mode.begin(), rs.mode.end(), std::uint8_t{3})), s.size());
-  for (const auto& v : rs.v) EXPECT_EQ(v.squaredNorm(), 0.0);
-  EXPECT_GE(rs.hybrid.slept, s.size());
-  EXPECT_EQ(rs.hybrid.slept - rs.hybrid.woken, s.size());
-  EXPECT_LT(rs.hybrid.substeps, ra.hybrid.substeps);
-  EXPECT_LT(rs.hybrid.soft_particle_steps, 0.8 * ra.hybrid.soft_particle_steps);
-  ::testing::Test::RecordProperty("bed_height_rest_awake_tdm", fmt::format("{:.5g} {:.5g} {:.5g}", Hs, Ha, Ht));
+  expect_all_asleep<3>(b, s.size());
+  for (const auto& v : b.rest.v) EXPECT_EQ(v.squaredNorm(), 0.0);
+  EXPECT_GE(b.rest.hybrid.slept, s.size());
+  EXPECT_LT(b.rest.hybrid.substeps, b.awake.hybrid.substeps);
   ::testing::Test::RecordProperty("soft_particle_steps_rest_awake",
-                                  fmt::format("{} {}", rs.hybrid.soft_particle_steps, ra.hybrid.soft_particle_steps));
-  ::testing::Test::RecordProperty("slept_woken", fmt::format("{} {}", rs.hybrid.slept, rs.hybrid.woken));
+                                  fmt::format("{} {}", b.rest.hybrid.soft_particle_steps,
+                                              b.awake.hybrid.soft_particle_steps));
+  ::testing::Test::RecordProperty("slept_woken", fmt::format("{} {}", b.rest.hybrid.slept, b.rest.hybrid.woken));
 }
 
 // The same rule in a polydisperse 2D bed (radii +-10 %, mu = 0.5): every contact has its own
@@ -532,27 +554,13 @@ TEST(HybridRest, SleepingBedMatchesTdmAndStopsTheSubsteps) {
 TEST(HybridRest, PolydisperseBedSleepsAndMatchesTdm) {
   const int n = kSanitized ? 100 : 300;
   const System<2> s = settling_box<2>(n, 20.0, 5, 0.5);
-  const double W = 0.2;
-  EdmSettings es;
-  es.end_time = 1.2;
-  const RunResult<2> rs = run_hybrid<2>(s, es, resting(0.01, 0.02));
-  ASSERT_EQ(rs.status, "ok") << rs.message;
-  const RunResult<2> ra = run_hybrid<2>(s, es, HybridSettings{});
-  ASSERT_EQ(ra.status, "ok") << ra.message;
-  TdmSettings ts;
-  ts.end_time = es.end_time;
-  ts.threads = 1;
-  const RunResult<2> rt = run_tdm<2>(s, ts);
-  ASSERT_EQ(rt.status, "ok") << rt.message;
-  const auto [Hs, ps] = bed_measure<2>(rs, W);
-  const auto [Ha, pa] = bed_measure<2>(ra, W);
-  const auto [Ht, pt] = bed_measure<2>(rt, W);
-  EXPECT_NEAR(Hs / Ha, 1.0, 0.01) << "rest rule " << Hs << " awake " << Ha;
-  EXPECT_NEAR(Hs / Ht, 1.0, 0.02) << "rest rule " << Hs << " tdm " << Ht;
-  EXPECT_EQ(static_cast<std::size_t>(std::count(rs.mode.begin(), rs.mode.end(), std::uint8_t{3})), s.size());
-  EXPECT_EQ(rs.hybrid.slept - rs.hybrid.woken, s.size());
-  EXPECT_LT(rs.hybrid.soft_particle_steps, 0.8 * ra.hybrid.soft_particle_steps);
-  ::testing::Test::RecordProperty("bed_height_rest_awake_tdm", fmt::format("{:.5g} {:.5g} {:.5g}", Hs, Ha, Ht));
+  const ThreeBeds<2> b = settle_three_ways<2>(s, 0.2, 1.2);
+  ASSERT_EQ(b.rest.status, "ok") << b.rest.message;
+  ASSERT_EQ(b.awake.status, "ok") << b.awake.message;
+  ASSERT_EQ(b.tdm.status, "ok") << b.tdm.message;
+  EXPECT_NEAR(b.Hs / b.Ha, 1.0, 0.01) << "rest rule " << b.Hs << " awake " << b.Ha;
+  EXPECT_NEAR(b.Hs / b.Ht, 1.0, 0.02) << "rest rule " << b.Hs << " tdm " << b.Ht;
+  expect_all_asleep<2>(b, s.size());
 }
 
 // Two frictionless grains stacked on the floor (B exactly on top of A) fall asleep; a third grain

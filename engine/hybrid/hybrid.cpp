@@ -499,9 +499,10 @@ class HybridEngine final : public edm::EdmCore<D, CalendarQueue, HybridEngine<D>
   // A candidate is an awake soft grain that touches nothing (one that turned soft by the
   // stability rule: for the release hysteresis) and has begun contacts, over its recent window
   // (at least k t_c), at under half the cost crossover rate 1 / (cost_ratio h) that turns a hard
-  // grain soft (the factor 2 is the rule's hysteresis). A hard grain may not lie within the capture skin of a soft one, so a candidate
-  // with a soft or sleeping grain that is not a candidate within the skin stays, and so on
-  // through the chain (fixed grains do not hold: hard grains meet them in EDM); the rest go hard.
+  // grain soft (the factor 2 is the rule's hysteresis). A hard grain may not lie within the
+  // capture skin of a soft one, so a candidate with a soft or sleeping grain that is not a
+  // candidate within the skin stays, and so on through the chain (fixed grains do not hold: hard
+  // grains meet them in EDM); the rest go hard.
   // The single-grain release above is the case of a candidate with no soft grain in its skin; this
   // one frees a dense gas whose grains are all within each other's skins. The window is halved
   // (count and span) once it exceeds 4 k t_c, so that it follows a cooling or thinning flow.

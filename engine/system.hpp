@@ -2,8 +2,10 @@
 // initial particle state. io/ builds it from a scene file; tests build it directly.
 #pragma once
 
+
 #include <algorithm>
 #include <array>
+#include <atomic>
 #include <cmath>
 #include <cstdint>
 #include <limits>
@@ -168,6 +170,9 @@ struct EdmSettings {
   // each within collapse_window of the previous one, stops the run with status "collapse".
   int collapse_count = 1000;
   double collapse_window = 0.0;   // 0 = 1e-9 * end_time
+  // When set and it turns true (a signal handler may set it), the run stops between two events
+  // with status "interrupted": the state is that after the last event handled.
+  const std::atomic<bool>* stop = nullptr;
 };
 
 }  // namespace matep

@@ -15,6 +15,8 @@
 // thread count.
 #pragma once
 
+
+#include <atomic>
 #include <cstdint>
 #include <limits>
 #include <vector>
@@ -38,6 +40,9 @@ struct TdmSettings {
   // Stop with status "unstable" when some overlap exceeds this fraction of the contact distance
   // (a time step too long for the contact stiffness) or a position stops being finite.
   double unstable_overlap = 0.5;
+  // When set and it turns true (a signal handler may set it), the run stops at the next whole
+  // step with status "interrupted" (every output written for that step).
+  const std::atomic<bool>* stop = nullptr;
 };
 
 // The checks run_tdm makes before it starts: the contact laws of every material pair, the time

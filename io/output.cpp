@@ -13,7 +13,7 @@ namespace {
 
 std::FILE* open_or_throw(const std::string& path, const char* mode) {
   std::FILE* f = std::fopen(path.c_str(), mode);
-  if (!f) throw IoError(fmt::format("{}: cannot open for writing: {}", path, std::strerror(errno)));
+  if (!f) throw WriteError(fmt::format("{}: cannot open for writing: {}", path, std::strerror(errno)));
   return f;
 }
 
@@ -169,20 +169,27 @@ EventLogWriter<D>::EventLogWriter(const std::string& path, std::uint64_t particl
   put_u32(h + 12, D);
   put_u32(h + 16, kEventRecordSize);
   put_u64(h + 24, particles);
-  std::fwrite(h, 1, kEventLogHeaderSize, f_);
+  if (std::fwrite(h, 1, kEventLogHeaderSize, f_) != kEventLogHeaderSize) {
+    const int err = errno;
+    std::fclose(f_);
+    f_ = nullptr;
+    throw WriteError(fmt::format("{}: write failed: {}", path_, std::strerror(err)));
+  }
 }
 
 template <int D>
 EventLogWriter<D>::~EventLogWriter() {
-  close();
+  if (f_) std::fclose(f_);
 }
 
 template <int D>
 void EventLogWriter<D>::close() {
-  if (f_) {
-    std::fclose(f_);
-    f_ = nullptr;
-  }
+  if (!f_) return;
+  std::FILE* f = f_;
+  f_ = nullptr;
+  const bool bad = std::ferror(f) != 0;
+  if (std::fclose(f) != 0 || bad)
+    throw WriteError(fmt::format("{}: write failed: {}", path_, std::strerror(errno)));
 }
 
 template <int D>
@@ -207,7 +214,7 @@ void EventLogWriter<D>::on_collision(const CollisionRecord<D>& c) {
   unsigned char buf[kEventRecordSize];
   encode_event_record(r, buf);
   if (std::fwrite(buf, 1, kEventRecordSize, f_) != kEventRecordSize)
-    throw IoError(fmt::format("{}: write failed: {}", path_, std::strerror(errno)));
+    throw WriteError(fmt::format("{}: write failed: {}", path_, std::strerror(errno)));
 }
 
 // A grain leaving through an outlet: kind 6, i its id, j the outlet's index, mi its mass, its
@@ -249,27 +256,29 @@ template class EventLogWriter<3>;
 
 template <int D>
 OutflowCsvWriter<D>::OutflowCsvWriter(const std::string& path, const std::vector<std::string>& outlets)
-    : path_(path), outlets_(outlets) {
-  f_ = open_or_throw(path, "w");
-  std::fputs(D == 3 ? "time,id,outlet,mass,x,y,z,vx,vy,vz\n" : "time,id,outlet,mass,x,y,vx,vy\n", f_);
+    : outlets_(outlets), f_(std::make_unique<CheckedFile>(path, "w")) {
+  f_->puts(D == 3 ? "time,id,outlet,mass,x,y,z,vx,vy,vz\n" : "time,id,outlet,mass,x,y,vx,vy\n");
 }
 
 template <int D>
-OutflowCsvWriter<D>::~OutflowCsvWriter() {
-  if (f_) std::fclose(f_);
+OutflowCsvWriter<D>::~OutflowCsvWriter() = default;
+
+template <int D>
+void OutflowCsvWriter<D>::close() {
+  f_->close();
 }
 
 template <int D>
 void OutflowCsvWriter<D>::on_outflow(const OutflowRecord<D>& r) {
-  fmt::print(f_, "{:.17g},{},{},{:.17g}", r.time, r.id, outlets_.at(r.outlet), r.mass);
-  for (int k = 0; k < D; ++k) fmt::print(f_, ",{:.17g}", r.x[k]);
-  for (int k = 0; k < D; ++k) fmt::print(f_, ",{:.17g}", r.v[k]);
-  std::fputs("\n", f_);
+  f_->print("{:.17g},{},{},{:.17g}", r.time, r.id, outlets_.at(r.outlet), r.mass);
+  for (int k = 0; k < D; ++k) f_->print(",{:.17g}", r.x[k]);
+  for (int k = 0; k < D; ++k) f_->print(",{:.17g}", r.v[k]);
+  f_->puts("\n");
 }
 
 template <int D>
 void OutflowCsvWriter<D>::on_sample(const ThermoSample&) {
-  std::fflush(f_);  // complete up to the last thermo row if a run stops early
+  f_->flush();  // complete up to the last thermo row if a run stops early
 }
 
 template class OutflowCsvWriter<2>;
@@ -278,38 +287,35 @@ template class OutflowCsvWriter<3>;
 // ---- thermo.csv -------------------------------------------------------------------------------
 
 ThermoCsvWriter::ThermoCsvWriter(const std::string& path, const std::vector<std::string>& walls, int dim, bool flows)
-    : path_(path), walls_(walls.size()), dim_(dim), flows_(flows) {
-  f_ = open_or_throw(path, "w");
-  std::fputs("time,kinetic_energy,rotational_energy,potential_energy,temperature,collisions,pressure,elastic_energy,"
-             "soft",
-             f_);
-  if (flows_) std::fputs(",grains,grains_in,mass_in,grains_out,mass_out", f_);
+    : walls_(walls.size()), dim_(dim), flows_(flows), f_(std::make_unique<CheckedFile>(path, "w")) {
+  f_->puts("time,kinetic_energy,rotational_energy,potential_energy,temperature,collisions,pressure,elastic_energy,"
+           "soft");
+  if (flows_) f_->puts(",grains,grains_in,mass_in,grains_out,mass_out");
   for (const auto& w : walls) {
-    if (dim_ == 2) fmt::print(f_, ",{0}_fx,{0}_fy,{0}_tz", w);
-    else fmt::print(f_, ",{0}_fx,{0}_fy,{0}_fz,{0}_tx,{0}_ty,{0}_tz", w);
+    if (dim_ == 2) f_->print(",{0}_fx,{0}_fy,{0}_tz", w);
+    else f_->print(",{0}_fx,{0}_fy,{0}_fz,{0}_tx,{0}_ty,{0}_tz", w);
   }
-  std::fputs("\n", f_);
+  f_->puts("\n");
 }
 
-ThermoCsvWriter::~ThermoCsvWriter() {
-  if (f_) std::fclose(f_);
-}
+ThermoCsvWriter::~ThermoCsvWriter() = default;
+
+void ThermoCsvWriter::close() { f_->close(); }
 
 void ThermoCsvWriter::on_sample(const ThermoSample& s) {
-  fmt::print(f_, "{:.17g},{:.17g},{:.17g},{:.17g},{:.17g},{},{:.17g},{:.17g},{}", s.time, s.kinetic_energy,
-             s.rotational_energy, s.potential_energy, s.temperature, s.collisions, s.pressure,
-             s.elastic_energy, s.soft);
-  if (flows_) fmt::print(f_, ",{},{},{:.17g},{},{:.17g}", s.grains, s.grains_in, s.mass_in, s.grains_out, s.mass_out);
+  f_->print("{:.17g},{:.17g},{:.17g},{:.17g},{:.17g},{},{:.17g},{:.17g},{}", s.time, s.kinetic_energy,
+            s.rotational_energy, s.potential_energy, s.temperature, s.collisions, s.pressure, s.elastic_energy, s.soft);
+  if (flows_) f_->print(",{},{},{:.17g},{},{:.17g}", s.grains, s.grains_in, s.mass_in, s.grains_out, s.mass_out);
   // Six numbers per wall in the sample (2D: force x, y and torque z are the meaningful ones); none
   // at t = 0 (no interval yet): zeros.
   for (std::size_t w = 0; w < walls_; ++w) {
     const bool have = s.wall_loads.size() >= 6 * (w + 1);
     auto at = [&](int k) { return have ? s.wall_loads[6 * w + static_cast<std::size_t>(k)] : 0.0; };
-    if (dim_ == 2) fmt::print(f_, ",{:.17g},{:.17g},{:.17g}", at(0), at(1), at(5));
-    else fmt::print(f_, ",{:.17g},{:.17g},{:.17g},{:.17g},{:.17g},{:.17g}", at(0), at(1), at(2), at(3), at(4), at(5));
+    if (dim_ == 2) f_->print(",{:.17g},{:.17g},{:.17g}", at(0), at(1), at(5));
+    else f_->print(",{:.17g},{:.17g},{:.17g},{:.17g},{:.17g},{:.17g}", at(0), at(1), at(2), at(3), at(4), at(5));
   }
-  std::fputs("\n", f_);
-  std::fflush(f_);  // a run that stops early keeps every row written so far
+  f_->puts("\n");
+  f_->flush();  // a run that stops early keeps every row written so far
 }
 
 // ---- VTK snapshots ---------------------------------------------------------------------------
@@ -334,23 +340,23 @@ std::string VtkSnapshotWriter<D>::wall_file(std::size_t w, double t) {
                                  : fmt::format("snapshots/wall_{}.vtp", name);
   SurfaceMesh m;
   shape.tessellate(t, lower_, upper_, m);
-  std::FILE* f = open_or_throw(dir_ + "/" + rel, "w");
+  CheckedFile f(dir_ + "/" + rel, "w");
   const char* kind = D == 3 ? "Polys" : "Lines";
-  fmt::print(f, "<?xml version=\"1.0\"?>\n<VTKFile type=\"PolyData\" version=\"0.1\" byte_order=\"LittleEndian\">\n"
+  f.print("<?xml version=\"1.0\"?>\n<VTKFile type=\"PolyData\" version=\"0.1\" byte_order=\"LittleEndian\">\n"
                 "  <PolyData>\n    <Piece NumberOfPoints=\"{}\" NumberOfVerts=\"0\" NumberOfLines=\"{}\" "
                 "NumberOfStrips=\"0\" NumberOfPolys=\"{}\">\n      <Points>\n"
                 "        <DataArray type=\"Float64\" NumberOfComponents=\"3\" format=\"ascii\">\n",
              m.points.size(), D == 2 ? m.cells.size() : 0, D == 3 ? m.cells.size() : 0);
-  for (const auto& p : m.points) fmt::print(f, "{:.17g} {:.17g} {:.17g}\n", p[0], p[1], p[2]);
-  fmt::print(f, "        </DataArray>\n      </Points>\n      <{}>\n"
+  for (const auto& p : m.points) f.print("{:.17g} {:.17g} {:.17g}\n", p[0], p[1], p[2]);
+  f.print("        </DataArray>\n      </Points>\n      <{}>\n"
                 "        <DataArray type=\"Int32\" Name=\"connectivity\" format=\"ascii\">\n", kind);
   for (const auto& c : m.cells)
-    for (const auto k : c) fmt::print(f, "{}\n", k);
-  fmt::print(f, "        </DataArray>\n        <DataArray type=\"Int32\" Name=\"offsets\" format=\"ascii\">\n");
+    for (const auto k : c) f.print("{}\n", k);
+  f.print("        </DataArray>\n        <DataArray type=\"Int32\" Name=\"offsets\" format=\"ascii\">\n");
   std::size_t off = 0;
-  for (const auto& c : m.cells) fmt::print(f, "{}\n", off += c.size());
-  fmt::print(f, "        </DataArray>\n      </{}>\n    </Piece>\n  </PolyData>\n</VTKFile>\n", kind);
-  std::fclose(f);
+  for (const auto& c : m.cells) f.print("{}\n", off += c.size());
+  f.print("        </DataArray>\n      </{}>\n    </Piece>\n  </PolyData>\n</VTKFile>\n", kind);
+  f.close();
   if (!moving) static_file_[w] = rel;
   return rel;
 }
@@ -359,60 +365,62 @@ template <int D>
 void VtkSnapshotWriter<D>::on_snapshot(const Snapshot<D>& snap) {
   const std::string rel = fmt::format("snapshots/snap_{:06d}.vtp", written_.size());
   const std::string path = dir_ + "/" + rel;
-  std::FILE* f = open_or_throw(path, "w");
+  CheckedFile f(path, "w");
   const std::size_t n = snap.x.size();
   auto vec3 = [&](const char* name, auto get) {
-    fmt::print(f, "        <DataArray type=\"Float64\" Name=\"{}\" NumberOfComponents=\"3\" format=\"ascii\">\n", name);
+    f.print("        <DataArray type=\"Float64\" Name=\"{}\" NumberOfComponents=\"3\" format=\"ascii\">\n", name);
     double c[3];
     for (std::size_t i = 0; i < n; ++i) {
       get(i, c);
-      fmt::print(f, "{:.17g} {:.17g} {:.17g}\n", c[0], c[1], c[2]);
+      f.print("{:.17g} {:.17g} {:.17g}\n", c[0], c[1], c[2]);
     }
-    fmt::print(f, "        </DataArray>\n");
+    f.print("        </DataArray>\n");
   };
-  fmt::print(f, "<?xml version=\"1.0\"?>\n<VTKFile type=\"PolyData\" version=\"0.1\" byte_order=\"LittleEndian\">\n"
+  f.print("<?xml version=\"1.0\"?>\n<VTKFile type=\"PolyData\" version=\"0.1\" byte_order=\"LittleEndian\">\n"
                 "  <PolyData>\n    <Piece NumberOfPoints=\"{0}\" NumberOfVerts=\"{0}\" NumberOfLines=\"0\" "
                 "NumberOfStrips=\"0\" NumberOfPolys=\"0\">\n      <Points>\n", n);
   vec3("position", [&](std::size_t i, double* c) { to3<D>(snap.x[i], c); });
-  fmt::print(f, "      </Points>\n      <PointData Scalars=\"radius\" Vectors=\"velocity\">\n");
-  fmt::print(f, "        <DataArray type=\"Float64\" Name=\"radius\" format=\"ascii\">\n");
-  for (std::size_t i = 0; i < n; ++i) fmt::print(f, "{:.17g}\n", snap.radius[i]);
-  fmt::print(f, "        </DataArray>\n");
+  f.print("      </Points>\n      <PointData Scalars=\"radius\" Vectors=\"velocity\">\n");
+  f.print("        <DataArray type=\"Float64\" Name=\"radius\" format=\"ascii\">\n");
+  for (std::size_t i = 0; i < n; ++i) f.print("{:.17g}\n", snap.radius[i]);
+  f.print("        </DataArray>\n");
   vec3("velocity", [&](std::size_t i, double* c) { to3<D>(snap.v[i], c); });
   vec3("angular_velocity", [&](std::size_t i, double* c) {
     if (snap.w.empty()) c[0] = c[1] = c[2] = 0.0;
     else spin3<D>(snap.w[i], c);
   });
-  fmt::print(f, "        <DataArray type=\"Int32\" Name=\"id\" format=\"ascii\">\n");
-  for (std::size_t i = 0; i < n; ++i) fmt::print(f, "{}\n", snap.id.empty() ? i : std::size_t{snap.id[i]});
-  fmt::print(f, "        </DataArray>\n");
+  f.print("        <DataArray type=\"Int32\" Name=\"id\" format=\"ascii\">\n");
+  for (std::size_t i = 0; i < n; ++i) f.print("{}\n", snap.id.empty() ? i : std::size_t{snap.id[i]});
+  f.print("        </DataArray>\n");
   // Mode 0 hard, 1 soft, 3 asleep and the soft cluster id (-1: none). A snapshot without them
   // comes from a run that does not set them (0 and -1 are written).
-  fmt::print(f, "        <DataArray type=\"UInt8\" Name=\"mode\" format=\"ascii\">\n");
-  for (std::size_t i = 0; i < n; ++i) fmt::print(f, "{}\n", snap.mode.empty() ? 0 : int(snap.mode[i]));
-  fmt::print(f, "        </DataArray>\n        <DataArray type=\"Int32\" Name=\"cluster\" format=\"ascii\">\n");
-  for (std::size_t i = 0; i < n; ++i) fmt::print(f, "{}\n", snap.cluster.empty() ? -1 : snap.cluster[i]);
-  fmt::print(f, "        </DataArray>\n      </PointData>\n      <Verts>\n"
+  f.print("        <DataArray type=\"UInt8\" Name=\"mode\" format=\"ascii\">\n");
+  for (std::size_t i = 0; i < n; ++i) f.print("{}\n", snap.mode.empty() ? 0 : int(snap.mode[i]));
+  f.print("        </DataArray>\n        <DataArray type=\"Int32\" Name=\"cluster\" format=\"ascii\">\n");
+  for (std::size_t i = 0; i < n; ++i) f.print("{}\n", snap.cluster.empty() ? -1 : snap.cluster[i]);
+  f.print("        </DataArray>\n      </PointData>\n      <Verts>\n"
                 "        <DataArray type=\"Int32\" Name=\"connectivity\" format=\"ascii\">\n");
-  for (std::size_t i = 0; i < n; ++i) fmt::print(f, "{}\n", i);
-  fmt::print(f, "        </DataArray>\n        <DataArray type=\"Int32\" Name=\"offsets\" format=\"ascii\">\n");
-  for (std::size_t i = 0; i < n; ++i) fmt::print(f, "{}\n", i + 1);
-  fmt::print(f, "        </DataArray>\n      </Verts>\n    </Piece>\n  </PolyData>\n</VTKFile>\n");
-  std::fclose(f);
+  for (std::size_t i = 0; i < n; ++i) f.print("{}\n", i);
+  f.print("        </DataArray>\n        <DataArray type=\"Int32\" Name=\"offsets\" format=\"ascii\">\n");
+  for (std::size_t i = 0; i < n; ++i) f.print("{}\n", i + 1);
+  f.print("        </DataArray>\n      </Verts>\n    </Piece>\n  </PolyData>\n</VTKFile>\n");
+  f.close();
   std::vector<std::string> files{rel};
   for (std::size_t w = 0; w < walls_.size(); ++w) files.push_back(wall_file(w, snap.time));
   written_.emplace_back(snap.time, std::move(files));
   // The collection is rewritten whole (to a temporary, then renamed) after every snapshot.
   const std::string pvd = dir_ + "/snapshots.pvd", tmp = pvd + ".tmp";
-  std::FILE* c = open_or_throw(tmp, "w");
-  fmt::print(c, "<?xml version=\"1.0\"?>\n<VTKFile type=\"Collection\" version=\"0.1\" byte_order=\"LittleEndian\">\n"
+  CheckedFile c(tmp, "w");
+  c.print("<?xml version=\"1.0\"?>\n<VTKFile type=\"Collection\" version=\"0.1\" byte_order=\"LittleEndian\">\n"
                 "  <Collection>\n");
   for (const auto& [t, files] : written_)
     for (std::size_t k = 0; k < files.size(); ++k)
-      fmt::print(c, "    <DataSet timestep=\"{:.17g}\" group=\"\" part=\"{}\" file=\"{}\"/>\n", t, k, files[k]);
-  fmt::print(c, "  </Collection>\n</VTKFile>\n");
-  std::fclose(c);
-  std::filesystem::rename(tmp, pvd);
+      c.print("    <DataSet timestep=\"{:.17g}\" group=\"\" part=\"{}\" file=\"{}\"/>\n", t, k, files[k]);
+  c.print("  </Collection>\n</VTKFile>\n");
+  c.close();
+  std::error_code ec;
+  std::filesystem::rename(tmp, pvd, ec);
+  if (ec) throw WriteError(fmt::format("{}: cannot rename into place: {}", pvd, ec.message()));
 }
 
 template class VtkSnapshotWriter<2>;
@@ -423,24 +431,24 @@ template class VtkSnapshotWriter<3>;
 template <int D>
 void write_final_state(const std::string& path, const RunResult<D>& res) {
   const auto& radius = res.radius;
-  std::FILE* f = open_or_throw(path, "w");
+  CheckedFile f(path, "w");
   if constexpr (D == 3)
-    std::fputs("id,x,y,z,vx,vy,vz,wx,wy,wz,radius\n", f);
+    f.puts("id,x,y,z,vx,vy,vz,wx,wy,wz,radius\n");
   else
-    std::fputs("id,x,y,vx,vy,w,radius\n", f);
+    f.puts("id,x,y,vx,vy,w,radius\n");
   for (std::size_t i = 0; i < res.x.size(); ++i) {
     const auto& x = res.x[i];
     const auto& v = res.v[i];
     const Spin<D> w = res.w.empty() ? Spin<D>::Zero() : res.w[i];
     if constexpr (D == 3)
-      fmt::print(f, "{},{:.17g},{:.17g},{:.17g},{:.17g},{:.17g},{:.17g},{:.17g},{:.17g},{:.17g},{:.17g}\n",
+      f.print("{},{:.17g},{:.17g},{:.17g},{:.17g},{:.17g},{:.17g},{:.17g},{:.17g},{:.17g},{:.17g}\n",
                  res.id.empty() ? i : std::size_t{res.id[i]}, x[0], x[1], x[2], v[0], v[1], v[2], w[0], w[1], w[2],
                  radius[i]);
     else
-      fmt::print(f, "{},{:.17g},{:.17g},{:.17g},{:.17g},{:.17g},{:.17g}\n", res.id.empty() ? i : std::size_t{res.id[i]},
+      f.print("{},{:.17g},{:.17g},{:.17g},{:.17g},{:.17g},{:.17g}\n", res.id.empty() ? i : std::size_t{res.id[i]},
                  x[0], x[1], v[0], v[1], w[0], radius[i]);
   }
-  std::fclose(f);
+  f.close();
 }
 
 template void write_final_state<2>(const std::string&, const RunResult<2>&);
@@ -474,39 +482,39 @@ std::string json_number(double v) {
 
 template <int D>
 void write_summary(const std::string& path, const SummaryInfo& info, const RunResult<D>& r) {
-  std::FILE* f = open_or_throw(path, "w");
+  CheckedFile f(path, "w");
   const double wall = r.wall_seconds > 0.0 ? r.wall_seconds : 1e-9;
-  fmt::print(f, "{{\n");
-  fmt::print(f, "  \"scene\": {},\n", json_string(info.scene));
-  fmt::print(f, "  \"method\": {},\n", json_string(info.method));
-  fmt::print(f, "  \"queue\": {},\n", json_string(info.queue));
-  fmt::print(f, "  \"dimension\": {},\n", info.dimension);
-  fmt::print(f, "  \"particles\": {},\n", info.particles);
-  fmt::print(f, "  \"seed\": {},\n", info.seed);
-  fmt::print(f, "  \"end_time\": {},\n", json_number(info.end_time));
-  fmt::print(f, "  \"time_reached\": {},\n", json_number(r.time));
-  fmt::print(f, "  \"wall_seconds\": {},\n", json_number(r.wall_seconds));
-  fmt::print(f, "  \"events\": {{\"pair_collisions\": {}, \"wall_collisions\": {}, \"cell_crossings\": {}, "
+  f.print("{{\n");
+  f.print("  \"scene\": {},\n", json_string(info.scene));
+  f.print("  \"method\": {},\n", json_string(info.method));
+  f.print("  \"queue\": {},\n", json_string(info.queue));
+  f.print("  \"dimension\": {},\n", info.dimension);
+  f.print("  \"particles\": {},\n", info.particles);
+  f.print("  \"seed\": {},\n", info.seed);
+  f.print("  \"end_time\": {},\n", json_number(info.end_time));
+  f.print("  \"time_reached\": {},\n", json_number(r.time));
+  f.print("  \"wall_seconds\": {},\n", json_number(r.wall_seconds));
+  f.print("  \"events\": {{\"pair_collisions\": {}, \"wall_collisions\": {}, \"cell_crossings\": {}, "
              "\"stale\": {}, \"thermo_samples\": {}, \"total\": {}}},\n",
              r.counts.pair, r.counts.wall, r.counts.cell, r.counts.stale, r.counts.samples,
              r.counts.total());
-  fmt::print(f, "  \"events_per_second\": {},\n", json_number(r.counts.total() / wall));
-  fmt::print(f, "  \"collisions_per_second\": {},\n", json_number(r.counts.collisions() / wall));
-  fmt::print(f, "  \"max_overlap\": {},\n", json_number(r.max_overlap));
-  fmt::print(f, "  \"max_overlap_relative\": {},\n", json_number(r.max_overlap_relative));
-  fmt::print(f, "  \"grains_at_end\": {},\n", r.x.size());
+  f.print("  \"events_per_second\": {},\n", json_number(r.counts.total() / wall));
+  f.print("  \"collisions_per_second\": {},\n", json_number(r.counts.collisions() / wall));
+  f.print("  \"max_overlap\": {},\n", json_number(r.max_overlap));
+  f.print("  \"max_overlap_relative\": {},\n", json_number(r.max_overlap_relative));
+  f.print("  \"grains_at_end\": {},\n", r.x.size());
   if (info.flows) {
-    fmt::print(f, "  \"inflow\": {{\"grains\": {}, \"mass\": {}}},\n", r.grains_in, json_number(r.mass_in));
-    fmt::print(f, "  \"outflow\": {{\"grains\": {}, \"mass\": {}}},\n", r.grains_out, json_number(r.mass_out));
-    fmt::print(f, "  \"inlets\": [");
+    f.print("  \"inflow\": {{\"grains\": {}, \"mass\": {}}},\n", r.grains_in, json_number(r.mass_in));
+    f.print("  \"outflow\": {{\"grains\": {}, \"mass\": {}}},\n", r.grains_out, json_number(r.mass_out));
+    f.print("  \"inlets\": [");
     for (std::size_t k = 0; k < r.inlets.size(); ++k)
-      fmt::print(f, "{}{{\"name\": {}, \"due\": {}, \"inserted\": {}, \"missed\": {}}}", k ? ", " : "",
+      f.print("{}{{\"name\": {}, \"due\": {}, \"inserted\": {}, \"missed\": {}}}", k ? ", " : "",
                  json_string(r.inlets[k].name), r.inlets[k].due, r.inlets[k].inserted, r.inlets[k].missed);
-    fmt::print(f, "],\n");
+    f.print("],\n");
   }
   if (r.method != Method::Edm) {
     const SoftStats& s = r.soft;
-    fmt::print(f, "  \"soft\": {{\"steps\": {}, \"dt\": {}, \"default_dt\": {}, \"max_stable_dt\": {}, "
+    f.print("  \"soft\": {{\"steps\": {}, \"dt\": {}, \"default_dt\": {}, \"max_stable_dt\": {}, "
                "\"contact_time\": {}, \"rayleigh_time\": {}, \"impact_speed\": {}, \"skin\": {}, "
                "\"rebuilds\": {}, \"contacts\": {}, \"threads\": {}, \"particle_steps_per_second\": {}}},\n",
                s.steps, json_number(s.dt), json_number(s.default_dt), json_number(s.max_stable_dt),
@@ -515,7 +523,7 @@ void write_summary(const std::string& path, const SummaryInfo& info, const RunRe
   }
   if (r.method == Method::Hybrid) {
     const HybridStats& h = r.hybrid;
-    fmt::print(f, "  \"hybrid\": {{\"to_soft\": {}, \"by_stability\": {}, \"by_cost\": {}, \"by_cluster\": {}, "
+    f.print("  \"hybrid\": {{\"to_soft\": {}, \"by_stability\": {}, \"by_cost\": {}, \"by_cluster\": {}, "
                "\"by_capture\": {}, \"by_overlap\": {}, \"to_hard\": {}, \"released_by_cost\": {}, \"slept\": {}, \"woken\": {}, "
                "\"substeps\": {}, \"soft_particle_steps\": {}, \"max_soft\": {}, \"soft_at_end\": {}, "
                "\"stability\": {}, \"hysteresis\": {}, \"skin\": {}, \"cost_ratio\": {}, \"rest_speed\": {}, "
@@ -525,10 +533,10 @@ void write_summary(const std::string& path, const SummaryInfo& info, const RunRe
                json_number(h.hysteresis), json_number(h.skin), json_number(h.cost_ratio), json_number(h.rest_speed),
                json_number(h.rest_time));
   }
-  fmt::print(f, "  \"status\": {},\n", json_string(r.status));
-  fmt::print(f, "  \"message\": {}\n", json_string(r.message));
-  fmt::print(f, "}}\n");
-  std::fclose(f);
+  f.print("  \"status\": {},\n", json_string(r.status));
+  f.print("  \"message\": {}\n", json_string(r.message));
+  f.print("}}\n");
+  f.close();
 }
 
 template void write_summary<2>(const std::string&, const SummaryInfo&, const RunResult<2>&);

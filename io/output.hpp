@@ -11,13 +11,10 @@
 
 #include "engine/edm.hpp"
 #include "engine/observer.hpp"
+#include "io/checked_file.hpp"
+#include "io/io_error.hpp"
 
 namespace matep {
-
-class IoError : public std::runtime_error {
- public:
-  using std::runtime_error::runtime_error;
-};
 
 // Event log layout, version 1 (little-endian). A 64-byte header: magic "MATEPLOG", u32 version,
 // u32 dimension, u32 record size, u32 reserved, u64 particle count, zero padding. Then records
@@ -80,7 +77,7 @@ class EventLogWriter final : public Observer<D> {
   void on_collision(const CollisionRecord<D>& rec) override;
   void on_outflow(const OutflowRecord<D>& rec) override;
   void on_inflow(const InflowRecord<D>& rec) override;
-  void close();
+  void close();  // checked (WriteError); the destructor closes unchecked
 
  private:
   std::string path_;
@@ -100,13 +97,13 @@ class ThermoCsvWriter final : public Observer<2>, public Observer<3> {
                            bool flows = false);
   ~ThermoCsvWriter() override;
   void on_sample(const ThermoSample& s) override;
+  void close();  // checked (WriteError); the destructor closes unchecked
 
  private:
-  std::string path_;
   std::size_t walls_ = 0;
   int dim_ = 3;
   bool flows_ = false;
-  std::FILE* f_ = nullptr;
+  std::unique_ptr<CheckedFile> f_;
 };
 
 // outflow.csv: one row per grain taken out by an outlet, in the order they left: time, id, the
@@ -118,11 +115,11 @@ class OutflowCsvWriter final : public Observer<D> {
   ~OutflowCsvWriter() override;
   void on_outflow(const OutflowRecord<D>& r) override;
   void on_sample(const ThermoSample&) override;
+  void close();  // checked (WriteError); the destructor closes unchecked
 
  private:
-  std::string path_;
   std::vector<std::string> outlets_;
-  std::FILE* f_ = nullptr;
+  std::unique_ptr<CheckedFile> f_;
 };
 
 // VTK XML PolyData snapshots for ParaView: DIR/snapshots/snap_NNNNNN.vtp (points with radius,

@@ -14,7 +14,9 @@
 #include "engine/hybrid.hpp"
 #include "engine/rough_rules.hpp"
 #include "engine/tdm.hpp"
+#include "io/interrupt.hpp"
 #include "io/output.hpp"
+#include "io/run_folder.hpp"
 
 namespace matep {
 
@@ -29,6 +31,7 @@ EdmSettings edm_settings(const Scene& s) {
   if (s.max_events > 0) e.max_events = s.max_events;
   e.collapse_count = s.collapse_count;
   e.collapse_window = s.collapse_window;
+  e.stop = &stop_flag();
   return e;
 }
 
@@ -39,6 +42,7 @@ TdmSettings tdm_settings(const Scene& s) {
   t.threads = s.threads.value_or(0);
   t.thermo_interval = s.output.thermo_interval;
   t.snapshot_interval = s.output.snapshot_interval;
+  t.stop = &stop_flag();
   return t;
 }
 
@@ -134,30 +138,32 @@ RunOutcome run_system(const Scene& scene, const System<D>& sys, const std::strin
                                    "and a \"tdm\" run has none; set output.events = false",
                                    scene.path));
   }
-  std::filesystem::create_directories(dir);
+  // The outputs go to a staging folder and replace the folder's previous set only when complete.
+  RunFolder folder(dir);
+  const std::string out = folder.staging();
   const EdmSettings settings = edm_settings(scene);
   std::vector<std::string> wall_names;
   if (scene.output.wall_loads)
     for (const auto& w : sys.walls) wall_names.push_back(w.name);
   const bool flows = !sys.outlets.empty() || !sys.inlets.empty();
-  ThermoCsvWriter thermo(dir + "/thermo.csv", wall_names, D, flows);
+  ThermoCsvWriter thermo(out + "/thermo.csv", wall_names, D, flows);
   std::unique_ptr<EventLogWriter<D>> log;
   std::vector<Observer<D>*> observers{static_cast<Observer<D>*>(&thermo)};
   std::unique_ptr<OutflowCsvWriter<D>> outflow;
   if (!sys.outlets.empty()) {
     std::vector<std::string> names;
     for (const auto& o : sys.outlets) names.push_back(o.name);
-    outflow = std::make_unique<OutflowCsvWriter<D>>(dir + "/outflow.csv", names);
+    outflow = std::make_unique<OutflowCsvWriter<D>>(out + "/outflow.csv", names);
     observers.push_back(outflow.get());
   }
   if (scene.output.events) {
-    log = std::make_unique<EventLogWriter<D>>(dir + "/events.bin", sys.size() + inlet_slots(sys.inlets, scene.end_time),
+    log = std::make_unique<EventLogWriter<D>>(out + "/events.bin", sys.size() + inlet_slots(sys.inlets, scene.end_time),
                                               sys.fixed.empty() ? kEventLogVersion : kEventLogVersionFixed);
     observers.push_back(log.get());
   }
   std::unique_ptr<VtkSnapshotWriter<D>> vtk;
   if (scene.output.snapshot_interval > 0.0) {
-    vtk = std::make_unique<VtkSnapshotWriter<D>>(dir, sys.walls, sys.lower, sys.upper);
+    vtk = std::make_unique<VtkSnapshotWriter<D>>(out, sys.walls, sys.lower, sys.upper);
     observers.push_back(vtk.get());
   }
   std::unique_ptr<ProgressObserver> prog;
@@ -170,7 +176,9 @@ RunOutcome run_system(const Scene& scene, const System<D>& sys, const std::strin
                      : hybrid ? run_hybrid<D>(sys, settings, hybrid_settings(scene), observers, &*plan)
                               : run_edm<D>(sys, settings, q, observers, &*rough);
   if (log) log->close();
-  write_final_state<D>(dir + "/final_state.csv", res);
+  if (outflow) outflow->close();
+  thermo.close();
+  write_final_state<D>(out + "/final_state.csv", res);
   SummaryInfo info;
   info.scene = scene.path;
   info.method = method_name(scene.method);
@@ -180,28 +188,31 @@ RunOutcome run_system(const Scene& scene, const System<D>& sys, const std::strin
   info.seed = scene.seed;
   info.end_time = scene.end_time;
   info.flows = flows;
-  write_summary<D>(dir + "/summary.json", info, res);
-  RunOutcome out;
-  out.status = res.status;
-  out.message = res.message;
-  out.out_dir = dir;
-  out.wall_seconds = res.wall_seconds;
-  out.collisions = res.counts.collisions();
-  out.steps = res.soft.steps;
-  out.dt = res.soft.dt;
-  out.particle_steps_per_second = res.soft.particle_steps_per_second;
-  out.soft_particle_steps = res.hybrid.soft_particle_steps;
-  out.to_soft = res.hybrid.to_soft;
-  out.to_hard = res.hybrid.to_hard;
-  out.soft_at_end = res.hybrid.soft_at_end;
-  out.slept = res.hybrid.slept;
+  if (res.status == "interrupted")
+    res.message = fmt::format("stopped by {} at t = {:.17g}", stop_signal_name(), res.time);
+  write_summary<D>(out + "/summary.json", info, res);
+  folder.publish();
+  RunOutcome outcome;
+  outcome.status = res.status;
+  outcome.message = res.message;
+  outcome.out_dir = dir;
+  outcome.wall_seconds = res.wall_seconds;
+  outcome.collisions = res.counts.collisions();
+  outcome.steps = res.soft.steps;
+  outcome.dt = res.soft.dt;
+  outcome.particle_steps_per_second = res.soft.particle_steps_per_second;
+  outcome.soft_particle_steps = res.hybrid.soft_particle_steps;
+  outcome.to_soft = res.hybrid.to_soft;
+  outcome.to_hard = res.hybrid.to_hard;
+  outcome.soft_at_end = res.hybrid.soft_at_end;
+  outcome.slept = res.hybrid.slept;
   for (const InletReport& r : res.inlets)
     if (r.missed > 0)
-      out.warnings.push_back(fmt::format(
+      outcome.warnings.push_back(fmt::format(
           "inlet.{}: {} of the {} grains due found no free place in the region and were not inserted (the rate "
           "could not be met: {} inserted)",
           r.name, r.missed, r.due, r.inserted));
-  return out;
+  return outcome;
 }
 
 // Contact value of the pair distribution: Carnahan-Starling (3D), Henderson (2D)

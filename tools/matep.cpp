@@ -5,6 +5,7 @@
 #include <boost/program_options.hpp>
 #include <algorithm>
 #include <chrono>
+#include <csignal>
 #include <cstdio>
 #include <cstdlib>
 #include <iostream>
@@ -12,6 +13,7 @@
 #include <string>
 #include <vector>
 
+#include "io/interrupt.hpp"
 #include "io/log_tools.hpp"
 #include "io/output.hpp"
 #include "io/run.hpp"
@@ -24,6 +26,8 @@ namespace {
 constexpr int kExitViolation = 1;  // matep log verify: a record breaks a conservation law
 constexpr int kExitUsage = 2;     // bad command line or bad input
 constexpr int kExitStopped = 3;   // the run stopped early (collapse, escape, event cap)
+constexpr int kExitWrite = 4;     // an output could not be written (full disk, file-size limit, ...)
+// A run stopped by a signal exits with 128 + the signal (130 SIGINT, 143 SIGTERM), as shells expect.
 
 const char* kUsage =
     "matep: hybrid event-driven / time-driven granular dynamics\n"
@@ -38,7 +42,10 @@ const char* kUsage =
     "  matep --help | --version\n"
     "\n"
     "  run     runs the scene and writes thermo.csv, final_state.csv, summary.json\n"
-    "          (and events.bin with output.events = true) into output.dir or --out\n"
+    "          (and events.bin with output.events = true) into output.dir or --out; the\n"
+    "          folder's previous outputs are replaced only once the new set is complete.\n"
+    "          Ctrl-C (SIGINT) or SIGTERM stops at the next event or step and writes every\n"
+    "          output (status \"interrupted\", exit 130 / 143); a second one stops at once\n"
     "  check   validates the scene and prints what will be modelled\n"
     "  log     reads an event log (events.bin) record by record:\n"
     "          stats   counts by kind, time span, collision rate in N time bins (default 10),\n"
@@ -99,6 +106,8 @@ int cmd_check(const std::vector<std::string>& rest) {
 }
 
 int cmd_run(const std::vector<std::string>& rest) {
+  // From here a signal asks the run to stop and publish its outputs (io/interrupt.hpp).
+  matep::install_interrupt_handlers();
   const Args a = parse(rest, true);
   const matep::Scene scene = matep::load_scene(a.scene, a.sets);
   for (const auto& w : scene.warnings) fmt::print(stderr, "warning: {}\n", w);
@@ -134,6 +143,10 @@ int cmd_run(const std::vector<std::string>& rest) {
     fmt::print("matep: {} steps of {:.6g} ({} contacts begun) in {:.3f} s wall, {:.3g} particle-steps/s; "
                "output written to {}/\n",
                out.steps, out.dt, out.collisions, out.wall_seconds, out.particle_steps_per_second, out.out_dir);
+  if (out.status == "interrupted") {
+    const int sig = matep::stop_signal();
+    return fail(fmt::format("interrupted ({}): {}", scene.path, out.message), 128 + (sig > 0 ? sig : SIGINT));
+  }
   if (out.status != "ok") return fail(fmt::format("{} ({}): {}", out.status, scene.path, out.message), kExitStopped);
   return 0;
 }
@@ -244,6 +257,9 @@ void prefer_passive_openmp(char** argv) {
 
 int main(int argc, char** argv) {
   prefer_passive_openmp(argv);
+  // A file-size limit (ulimit -f) then fails the write with EFBIG, reported with the file's name
+  // and exit status 4, instead of killing the process mid-row.
+  std::signal(SIGXFSZ, SIG_IGN);
   std::vector<std::string> args(argv + 1, argv + argc);
   if (args.empty()) {
     fmt::print(stderr, "{}", kUsage);
@@ -273,6 +289,8 @@ int main(int argc, char** argv) {
     return fail(fmt::format("{} (try matep --help)", e.what()));
   } catch (const matep::SceneError& e) {
     return fail(e.what());
+  } catch (const matep::WriteError& e) {
+    return fail(e.what(), kExitWrite);
   } catch (const matep::IoError& e) {
     return fail(e.what());
   } catch (const std::invalid_argument& e) {

@@ -225,7 +225,14 @@ class EdmCore {
 
     RunResult<D> res;
     std::uint64_t processed = 0;
+    std::uint64_t polls = 0;
     while (!queue_->empty()) {
+      // A stop request (a signal): leave before the next event, with the state after the last.
+      if ((++polls & 0x3ff) == 0 && set_.stop && set_.stop->load(std::memory_order_relaxed)) {
+        status_ = "interrupted";
+        message_ = fmt::format("stopped on request at t = {:.17g}", now_);
+        break;
+      }
       const auto [id, t] = queue_->top();
       queue_->pop();
       now_ = t;

@@ -251,6 +251,12 @@ class HybridEngine final : public edm::EdmCore<D, CalendarQueue, HybridEngine<D>
     cost_every_ = cost_every_min_;
     substep_id_ = this->add_system_event("substep", [this](double t) {
       substep(t);
+      // A stop request (a signal), after whole substeps: the soft set is then at t like the rest.
+      if (status_.empty() && (hstats_.substeps & 0x3f) == 0 && set_.stop &&
+          set_.stop->load(std::memory_order_relaxed)) {
+        status_ = "interrupted";
+        message_ = fmt::format("stopped on request at t = {:.17g}", t);
+      }
       return status_.empty();
     });
     if (rot_ && sys_.w.empty()) sys_.w.assign(N_, Spin<D>::Zero());

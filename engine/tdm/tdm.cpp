@@ -182,6 +182,7 @@ class TdmEngine {
   double sweep_ = 0.0;            // the walls' largest sweep speed (contact/wall.hpp)
   double max_rel_ = 0.0, max_abs_ = 0.0;
   std::string status_ = "ok", message_;
+  bool stopping_ = false;  // a stop was requested (TdmSettings::stop): end at the next whole step
 };
 
 // The largest diameter of the run: of the grains at the start and of those the inlets insert.
@@ -969,6 +970,7 @@ RunResult<D> TdmEngine<D>::run() {
     if (moved && status_ == "ok") rebuild();
     if ((steps_ & 1023) == 0)
       for (auto* o : obs_) o->on_progress(steps_ * dt_, steps_);
+    if ((steps_ & 15) == 0 && set_.stop && set_.stop->load(std::memory_order_relaxed)) stopping_ = true;
   };
 
   if (!clocks_.empty()) insert_due();  // the grains due at t = 0
@@ -1005,7 +1007,7 @@ RunResult<D> TdmEngine<D>::run() {
     }
     after_move();
     // Steps that need no full-step state: forces and integration in one pass.
-    while (status_ == "ok" && !due(steps_) && steps_ < set_.max_steps) {
+    while (status_ == "ok" && !stopping_ && !due(steps_) && steps_ < set_.max_steps) {
       forces(true);
       check_stable();
       after_move();
@@ -1013,6 +1015,11 @@ RunResult<D> TdmEngine<D>::run() {
     if (status_ != "ok") break;
     forces(false);
     check_stable();
+    // A stop request (a signal) ends the run here, at a whole step, with its last row and snapshot.
+    if (stopping_ && status_ == "ok" && steps_ < nsteps) {
+      status_ = "interrupted";
+      message_ = fmt::format("stopped on request at t = {:.17g}", steps_ * dt_);
+    }
     emit(steps_, steps_ >= nsteps || status_ != "ok");
   }
   if (status_ == "ok" && steps_ < nsteps) {

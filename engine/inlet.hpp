@@ -49,7 +49,7 @@ struct Inlet {
     const double T = std::min(stop, end_time);
     if (!(T > start) || !(rate > 0.0)) return 0;
     double n = std::ceil((T - start) * rate);
-    if (!(n < 1e15)) n = 1e15;
+    if (!(n < 1e15)) return std::min<std::uint64_t>(count, 1000000000000000ULL);  // more than any run numbers
     auto k = static_cast<std::uint64_t>(n);
     while (k > 0 && !(slot_time(k - 1) < T)) --k;
     while (slot_time(k) < T) ++k;

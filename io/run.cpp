@@ -17,6 +17,7 @@
 #include "io/interrupt.hpp"
 #include "io/output.hpp"
 #include "io/run_folder.hpp"
+#include "io/scene_limits.hpp"
 
 namespace matep {
 
@@ -107,9 +108,92 @@ class ProgressObserver final : public Observer<2>, public Observer<3> {
   double end_;
 };
 
+// Contact value of the pair distribution: Carnahan-Starling (3D), Henderson (2D)
+// (REFERENCES 2.2).
+double contact_g(int d, double phi) {
+  if (d == 3) return (1.0 - phi / 2.0) / std::pow(1.0 - phi, 3);
+  return (1.0 - 7.0 * phi / 16.0) / std::pow(1.0 - phi, 2);
+}
+
+// Enskog's collision rate of the initial state (REFERENCES 2.1), when it applies (a moving gas
+// below close packing); the packing fraction and temperature with it.
+template <int D>
+struct Enskog {
+  double phi = 0.0, T = 0.0;
+  std::optional<double> rate;  // collisions per unit time
+};
+template <int D>
+Enskog<D> enskog(const System<D>& sys) {
+  double vol = 0.0, mv2 = 0.0, msum = 0.0, dsum = 0.0;
+  for (std::size_t i = 0; i < sys.size(); ++i) {
+    vol += ball_volume<D>(sys.radius[i]);
+    const double m = sys.mass(i);
+    mv2 += m * sys.v[i].squaredNorm();
+    msum += m;
+    dsum += 2.0 * sys.radius[i];
+  }
+  const double n = static_cast<double>(sys.size());
+  Enskog<D> e;
+  e.phi = vol / sys.volume();
+  if (n > 1 && mv2 > 0.0 && e.phi < 0.7) {
+    const double m = msum / n, sigma = dsum / n;
+    e.T = mv2 / (D * n);
+    const double omega = (D == 3 ? 24.0 : 8.0) * e.phi * contact_g(D, e.phi) / (std::sqrt(std::numbers::pi) * sigma) *
+                         std::sqrt(e.T / m);
+    e.rate = 0.5 * n * omega;
+  }
+  return e;
+}
+
+// The outputs a run plans to write, estimated generously (README.md, "Limits"): thermo.csv rows of
+// 24 bytes a column, snapshots of 280 bytes a grain, events.bin records for max_events or for
+// Enskog's rate. A plan above output.max_bytes is refused, naming the largest part's key.
+template <int D>
+void check_output_plan(const Scene& scene, const System<D>& sys) {
+  const OutputSpec& o = scene.output;
+  const double grains = static_cast<double>(sys.size() + inlet_slots(sys.inlets, scene.end_time));
+  const double columns = 9.0 + (sys.inlets.empty() && sys.outlets.empty() ? 0.0 : 4.0) +
+                         (o.wall_loads ? 6.0 * static_cast<double>(sys.walls.size()) : 0.0);
+  struct Part {
+    const char* key;
+    double value, bytes;
+    std::string what;
+  };
+  std::vector<Part> parts;
+  const double rows = o.thermo_interval > 0.0 ? scene.end_time / o.thermo_interval + 2.0 : 2.0;
+  parts.push_back({"thermo_interval", o.thermo_interval, rows * columns * 24.0,
+                   fmt::format("thermo.csv: {:.3g} rows", rows)});
+  if (o.snapshot_interval > 0.0) {
+    const double snaps = scene.end_time / o.snapshot_interval + 2.0;
+    parts.push_back({"snapshot_interval", o.snapshot_interval, snaps * grains * 280.0,
+                     fmt::format("{:.3g} snapshots of {:.0f} grains", snaps, grains)});
+  }
+  if (o.events && scene.method != Method::Tdm) {
+    std::optional<double> n;
+    if (scene.max_events > 0) n = static_cast<double>(scene.max_events);
+    if (const auto rate = enskog<D>(sys).rate) n = std::min(n.value_or(*rate * scene.end_time), *rate * scene.end_time);
+    if (n)
+      parts.push_back({"events", 1.0, *n * static_cast<double>(kEventRecordSize),
+                       fmt::format("events.bin: about {:.3g} collisions{}", *n,
+                                   scene.max_events > 0 ? " (run.max_events or Enskog's rate)" : " (Enskog's rate)")});
+  }
+  double total = 0.0;
+  const Part* big = &parts.front();
+  for (const Part& p : parts) {
+    total += p.bytes;
+    if (p.bytes > big->bytes) big = &p;
+  }
+  if (!(total <= o.max_bytes))
+    throw SceneError(fmt::format("{}: output.{}: the outputs would take about {} ({}), more than output.max_bytes = "
+                                 "{}; raise the interval, shorten run.end_time or raise output.max_bytes (got {})",
+                                 scene.path, big->key, scene_detail::show_bytes(total), big->what,
+                                 scene_detail::show_bytes(o.max_bytes),
+                                 std::string(big->key) == "events" ? std::string("true") : fmt::format("{}", big->value)));
+}
+
 // Checks what the scene reader cannot know about the engine: the periodic-axis rule of the cell
-// grid (engine/grid.hpp), here with no list skin; the soft preflights check it again with theirs.
-// Called by run before anything is written, and by check.
+// grid (engine/grid.hpp), here with no list skin (the soft preflights check it again with theirs),
+// and the size of the output plan. Called by run before anything is written, and by check.
 template <int D>
 void check_runnable(const Scene& scene, const System<D>& sys) {
   double dmax = 0.0;
@@ -119,6 +203,7 @@ void check_runnable(const Scene& scene, const System<D>& sys) {
   } catch (const std::invalid_argument& e) {
     throw SceneError(fmt::format("{}: {}", scene.path, e.what()));
   }
+  check_output_plan<D>(scene, sys);
 }
 
 template <int D>
@@ -213,13 +298,6 @@ RunOutcome run_system(const Scene& scene, const System<D>& sys, const std::strin
           "could not be met: {} inserted)",
           r.name, r.missed, r.due, r.inserted));
   return outcome;
-}
-
-// Contact value of the pair distribution: Carnahan-Starling (3D), Henderson (2D)
-// (REFERENCES 2.2).
-double contact_g(int d, double phi) {
-  if (d == 3) return (1.0 - phi / 2.0) / std::pow(1.0 - phi, 3);
-  return (1.0 - 7.0 * phi / 16.0) / std::pow(1.0 - phi, 2);
 }
 
 std::string restitution_text(const Restitution& r) {
@@ -322,26 +400,12 @@ std::string describe(const Scene& scene, const System<D>& sys) {
     s += fmt::format("gravity      ({})\n", fmt::join(sys.gravity, ", "));
   if (scene.tc > 0.0) s += fmt::format("TC model     collisions within {} of a previous one are elastic\n", scene.tc);
   // Predicted collision rate from Enskog theory (REFERENCES 2.1).
-  double vol = 0.0, mv2 = 0.0, msum = 0.0, dsum = 0.0;
-  for (std::size_t i = 0; i < sys.size(); ++i) {
-    vol += ball_volume<D>(sys.radius[i]);
-    const double m = sys.mass(i);
-    mv2 += m * sys.v[i].squaredNorm();
-    msum += m;
-    dsum += 2.0 * sys.radius[i];
-  }
-  const double n = static_cast<double>(sys.size());
-  const double phi = vol / sys.volume();
-  s += fmt::format("packing      {:.4f}\n", phi);
-  if (n > 1 && mv2 > 0.0 && phi < 0.7) {
-    const double T = mv2 / (D * n), m = msum / n, sigma = dsum / n;
-    const double g = contact_g(D, phi);
-    const double omega = (D == 3 ? 24.0 : 8.0) * phi * g / (std::sqrt(std::numbers::pi) * sigma) *
-                         std::sqrt(T / m);
+  const Enskog<D> en = enskog<D>(sys);
+  s += fmt::format("packing      {:.4f}\n", en.phi);
+  if (en.rate)
     s += fmt::format("predicted    {:.4g} collisions per unit time (Enskog, elastic, initial T = {:.4g}); "
                      "about {:.3g} collisions to end_time = {}\n",
-                     0.5 * n * omega, T, 0.5 * n * omega * scene.end_time, scene.end_time);
-  }
+                     *en.rate, en.T, *en.rate * scene.end_time, scene.end_time);
   s += fmt::format("outputs      {}/ thermo.csv{} final_state.csv summary.json{}\n", scene.output.dir,
                    scene.output.thermo_interval > 0.0
                        ? fmt::format(" (every {})", scene.output.thermo_interval)

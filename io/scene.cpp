@@ -23,6 +23,7 @@
 #include "contact/rotating.hpp"
 #include "io/placement.hpp"
 #include "io/scene_csv.hpp"
+#include "io/scene_limits.hpp"
 #include "io/scene_toml.hpp"
 #include "io/stl.hpp"
 
@@ -48,6 +49,38 @@ Vec<D> to_vec(const std::vector<double>& a) {
 }
 
 constexpr const char* kAxis[] = {"x", "y", "z"};
+
+// A radius the cell grids can hold: a normal float, and the domain's widest axis at most
+// kMaxDomainToDiameter diameters. Empty when it can; else the problem.
+template <int D>
+std::string radius_problem(double r, const System<D>& sys) {
+  if (!std::isnormal(r) || r < 0.0)
+    return fmt::format("radius {} is not a normal positive number (too small to compute with)", r);
+  const double L = (sys.upper - sys.lower).maxCoeff(), ratio = L / (2.0 * r);
+  if (ratio > kMaxDomainToDiameter)
+    return fmt::format("radius {} is too small for the domain: its widest axis ({}) is {:.3g} diameters, more than "
+                       "the limit of {:.0e}",
+                       r, L, ratio, kMaxDomainToDiameter);
+  return {};
+}
+
+// Refuses a planned number of grains (so far, with `more` added at key k) that the engines cannot
+// number or this machine's memory cannot hold (kBytesPerParticle each, a generous estimate).
+void check_grains(const TableReader& t, std::string_view k, std::uint64_t so_far, double more,
+                  std::string_view what) {
+  const double total = static_cast<double>(so_far) + more;
+  const std::string whose = so_far > 0 ? fmt::format(", {} in all with the grains before", total) : std::string();
+  if (total > static_cast<double>(kMaxParticles))
+    t.fail(k, fmt::format("{} {:.0f} grains{}, more than the limit of {} grains a run can number", what, more, whose,
+                          kMaxParticles),
+           t.need(k));
+  const double mem = physical_memory_bytes(), need = total * kBytesPerParticle;
+  if (mem > 0.0 && need > mem)
+    t.fail(k, fmt::format("{} {:.0f} grains{}; they would need about {} of memory ({:.0f} bytes each), more than this "
+                          "machine's {}",
+                          what, more, whose, show_bytes(need), kBytesPerParticle, show_bytes(mem)),
+           t.need(k));
+}
 
 // The [NAME] sub-tables of a top-level table such as [material], in file order.
 std::vector<std::pair<std::string, TableReader>> named_tables(const TableReader& top, std::string_view k) {
@@ -176,6 +209,7 @@ struct Builder {
   // Overlap allowed between particles read from files, as a fraction of the contact distance:
   // round-off for hard spheres; kSoftFileOverlap for soft spheres (a settled TDM state).
   double file_overlap = 1e-12;
+  std::uint64_t planned = 0;  // grains of the groups read so far and the inlets' slots
 
   std::string who(std::size_t g, std::size_t i) const {
     std::string s = fmt::format("particles.{}[{}]", groups[g].name, i);
@@ -212,12 +246,24 @@ struct Builder {
     } else {
       read_generated(g, t);
     }
+    planned += g.from_file ? g.r.size() : g.count;
     groups.push_back(std::move(g));
   }
 
   void read_file(Group<D>& g) {
     const TableReader& t = g.table;
     CsvTable csv;
+    std::error_code ec;
+    const auto bytes = fs::file_size(g.file_path, ec);
+    if (!ec) {  // reading holds about 16 bytes per byte of text (rows of doubles)
+      const double mem = physical_memory_bytes();
+      if (mem > 0.0 && 16.0 * static_cast<double>(bytes) > mem)
+        fail_got(file, t.key("file"),
+                 fmt::format("{}: the file is {}; reading it would need about {} of memory, more than this machine's {}",
+                             g.file_path, show_bytes(static_cast<double>(bytes)),
+                             show_bytes(16.0 * static_cast<double>(bytes)), show_bytes(mem)),
+                 quote(g.file_value));
+    }
     try {
       csv = read_csv(g.file_path);
     } catch (const CsvError& e) {
@@ -255,6 +301,7 @@ struct Builder {
     }
     if (csv.rows.empty()) bad("no particles (the file has a header but no rows)");
     const std::size_t n = csv.rows.size();
+    check_grains(t, "file", planned, static_cast<double>(n), "the file gives");
     g.x.resize(n);
     g.v.resize(n);
     g.w.assign(n, Spin<D>::Zero());
@@ -277,6 +324,10 @@ struct Builder {
                              csv.lines[i], g.r[i]),
                  quote(g.file_value));
       }
+      if (const std::string p = radius_problem<D>(g.r[i], sys); !p.empty())
+        fail_got(file, t.key("file"),
+                 fmt::format("particles.{}[{}] ({} line {}): {}", g.name, i, g.file_value, csv.lines[i], p),
+                 quote(g.file_value));
       for (int k = 0; k < D; ++k) {
         const double lo = sys.lower[k], hi = sys.upper[k], xk = g.x[i][k];
         const double slack = file_overlap * g.r[i];  // a soft particle may press into a wall at the edge
@@ -310,7 +361,9 @@ struct Builder {
     } else {
       t.fail("radius", fmt::format("expected a number or [rmin, rmax] but found {}", type_name(rn)), rn);
     }
+    if (const std::string p = radius_problem<D>(g.rmin, sys); !p.empty()) t.fail("radius", p, rn);
     g.count = static_cast<std::uint64_t>(t.integer("count", Range{1.0}));
+    check_grains(t, "count", planned, static_cast<double>(g.count), "asks for");
     g.lattice = t.string_opt("arrangement", {"random", "lattice"}).value_or("random") == "lattice";
     g.region_lower = sys.lower;
     g.region_upper = sys.upper;
@@ -812,6 +865,7 @@ Inlet<D> read_inlet(const std::string& name, const TableReader& t, const System<
     in.rmin = rr[0];
     in.rmax = rr[1];
   }
+  if (const std::string p = radius_problem<D>(in.rmin, sys); !p.empty()) t.fail("grain_radius", p, rn);
   // How fast: grains/s, or kg/s over the mean grain mass of the radius distribution.
   if (t.has("rate") == t.has("mass_rate"))
     fail(t.file(), t.path(), "give exactly one of rate (grains/s) and mass_rate (kg/s)");
@@ -894,6 +948,8 @@ void build_system(const TableReader& top, const TableReader& run, const fs::path
                fmt::format("must exceed domain.lower along {} ({} <= {})", kAxis[k], sys.upper[k], sys.lower[k]),
                dom.need("upper"));
     }
+    if (!std::isfinite(sys.upper[k] - sys.lower[k]))
+      dom.fail("upper", fmt::format("the domain is wider along {} than a number can hold", kAxis[k]), dom.need("upper"));
   }
   if (dom.has("periodic")) {
     const auto p = dom.booleans("periodic", D);
@@ -920,10 +976,18 @@ void build_system(const TableReader& top, const TableReader& run, const fs::path
   check_walls_fit<D>(file, sys);
 
   // [inlet.NAME] (each its own random stream: the scene's seed and its index)
+  std::uint64_t inlet_grains = 0;  // the engines reserve a particle per grain due
   {
     std::uint64_t k = 0;
-    for (const auto& [name, t] : named_tables(top, "inlet"))
+    for (const auto& [name, t] : named_tables(top, "inlet")) {
       sys.inlets.push_back(read_inlet<D>(name, t, sys, scene.seed * 1000003ULL + 17 * ++k));
+      const std::uint64_t due = sys.inlets.back().slots(scene.end_time);
+      const char* key = t.has("count") && sys.inlets.back().count == due ? "count"
+                        : t.has("rate")                                   ? "rate"
+                                                                          : "mass_rate";
+      check_grains(t, key, inlet_grains, static_cast<double>(due), "has due by run.end_time");
+      inlet_grains += due;
+    }
   }
 
   // [outlet.NAME]
@@ -945,6 +1009,7 @@ void build_system(const TableReader& top, const TableReader& run, const fs::path
   if (group_tables.empty() && sys.inlets.empty())
     fail(file, "particles", "missing (a scene needs at least one [particles.NAME] table, or an inlet)");
   Builder<D> b{file, base_dir, sys, {}, {}};
+  b.planned = inlet_grains;
   if (scene.method != Method::Edm) b.file_overlap = kSoftFileOverlap;
   for (std::size_t gi = 0; gi < group_tables.size(); ++gi) {
     b.read_group(group_tables[gi].first, group_tables[gi].second);
@@ -1049,12 +1114,13 @@ Scene build_scene(toml::table& root, const std::string& file, const fs::path& ba
   // [output]
   if (top.has("output")) {
     const TableReader out = top.sub("output");
-    out.allow({"dir", "thermo_interval", "events", "snapshot_interval", "wall_loads"});
+    out.allow({"dir", "thermo_interval", "events", "snapshot_interval", "wall_loads", "max_bytes"});
     scene.output.dir = out.string_opt("dir").value_or(scene.output.dir);
     scene.output.thermo_interval = out.number_or("thermo_interval", 0.0, kNonNegative);
     scene.output.events = out.boolean_or("events", false);
     scene.output.snapshot_interval = out.number_or("snapshot_interval", 0.0, kNonNegative);
     scene.output.wall_loads = out.boolean_or("wall_loads", false);
+    scene.output.max_bytes = out.number_or("max_bytes", scene.output.max_bytes, kPositive);
   }
 
   if (!top.has("domain")) top.need("domain");
@@ -1071,6 +1137,10 @@ Scene build_scene(toml::table& root, const std::string& file, const fs::path& ba
 Scene load_scene(const std::string& path, const std::vector<std::string>& overrides) {
   std::error_code ec;
   if (fs::is_directory(path, ec)) throw SceneError(fmt::format("{}: cannot read scene file: it is a directory", path));
+  if (const auto bytes = fs::file_size(path, ec); !ec && bytes > kMaxSceneBytes)
+    throw SceneError(fmt::format("{}: the scene is {} bytes, more than the limit of {} (give particles in a CSV file: "
+                                 "particles.NAME.file)",
+                                 path, bytes, show_bytes(static_cast<double>(kMaxSceneBytes))));
   std::ifstream in(path, std::ios::binary);
   if (!in) throw SceneError(fmt::format("{}: cannot read scene file: {}", path, std::strerror(errno)));
   std::ostringstream ss;

@@ -31,6 +31,7 @@ struct OutputSpec {
   bool events = false;             // write events.bin
   double snapshot_interval = 0.0;  // VTK snapshots every interval (0 = none)
   bool wall_loads = false;         // thermo.csv gets each wall's mean force and torque
+  double max_bytes = 10e9;         // a run whose planned outputs exceed this is refused (io/run.cpp)
 };
 
 // [hybrid]: the switching rule of run.method = "hybrid" (engine/hybrid.hpp); unset = default.

@@ -8,6 +8,7 @@
 #include <fmt/format.h>
 
 #include "io/scene.hpp"
+#include "io/scene_limits.hpp"
 
 namespace matep::scene_detail {
 
@@ -155,6 +156,7 @@ std::string Range::describe() const {
 }
 
 toml::table parse_toml(std::string_view text, const std::string& file) {
+  check_scene_text(text, file);
   try {
     return toml::parse(text, file);
   } catch (const toml::parse_error& e) {
@@ -184,6 +186,8 @@ void apply_overrides(toml::table& root, const std::vector<std::string>& override
                  quote(ov));
       }
       parts.emplace_back(part);
+      if (parts.size() > static_cast<std::size_t>(kMaxSceneNesting))
+        fail_got(file, "--set", fmt::format("the key has more than {} levels", kMaxSceneNesting), quote(ov));
       if (dot == std::string_view::npos) break;
       start = dot + 1;
     }
@@ -193,6 +197,7 @@ void apply_overrides(toml::table& root, const std::vector<std::string>& override
     bool is_toml = false;
     try {
       const std::string doc = fmt::format("v = {}", value);
+      check_scene_text(doc, fmt::format("{}: {}", file, shown));
       parsed = toml::parse(std::string_view(doc), std::string_view("--set"));
       is_toml = parsed.size() == 1 && parsed.contains("v");
     } catch (const toml::parse_error&) {

@@ -5,11 +5,13 @@
 #include <unistd.h>
 
 #include <array>
+#include <csignal>
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
 #include <sstream>
 #include <string>
+#include <vector>
 
 namespace matep::test {
 
@@ -27,6 +29,42 @@ inline CliResult run_cli(const std::string& args) {
   while (p && std::fgets(buf.data(), buf.size(), p)) r.out += buf.data();
   const int status = p ? pclose(p) : -1;
   r.code = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
+  return r;
+}
+
+struct ChildResult {
+  int code = -1;    // exit status, or -1 when a signal ended it
+  int signal = 0;   // the signal that ended it (SIGALRM: it ran past the timeout)
+  std::string out;  // stdout and stderr together
+};
+
+// Runs the matep binary as a child with `args` (no shell), killed by SIGALRM after timeout_s, so
+// that a crash shows as a signal and a hang cannot stall the suite.
+inline ChildResult run_cli_child(const std::vector<std::string>& args, unsigned timeout_s) {
+  int fds[2];
+  ChildResult r;
+  if (::pipe(fds) != 0) return r;
+  const pid_t pid = ::fork();
+  if (pid == 0) {
+    ::dup2(fds[1], 1);
+    ::dup2(fds[1], 2);
+    ::close(fds[0]);
+    ::close(fds[1]);
+    std::vector<char*> argv{const_cast<char*>(MATEP_CLI)};
+    for (const auto& a : args) argv.push_back(const_cast<char*>(a.c_str()));
+    argv.push_back(nullptr);
+    ::alarm(timeout_s);  // kept across exec; its default action ends the process
+    ::execv(MATEP_CLI, argv.data());
+    ::_exit(127);
+  }
+  ::close(fds[1]);
+  std::array<char, 4096> buf;
+  for (ssize_t n; (n = ::read(fds[0], buf.data(), buf.size())) > 0;) r.out.append(buf.data(), static_cast<std::size_t>(n));
+  ::close(fds[0]);
+  int status = 0;
+  ::waitpid(pid, &status, 0);
+  if (WIFEXITED(status)) r.code = WEXITSTATUS(status);
+  if (WIFSIGNALED(status)) r.signal = WTERMSIG(status);
   return r;
 }
 

@@ -1,0 +1,138 @@
+// The scene reader and the CSV particle reader under the mutation fuzzer (tests/fuzz/fuzz_driver.hpp):
+// every input must load or be refused with SceneError / IoError / std::invalid_argument (CSV:
+// CsvError); never a crash, a hang (> 2 s) or more than 1 GiB. The corpus is tests/fuzz/corpus/
+// (small scenes from cases/ and tests/data, and each input that once broke a reader).
+//
+// A short run by default; MATEP_FUZZ_EXECS=N (per target) and MATEP_FUZZ_SECONDS=S run longer,
+// MATEP_FUZZ_SEED=K another sequence. Each run prints its executions per second. A failing input is
+// written to MATEP_FUZZ_CRASH_DIR (default: the system's temporary folder) for the corpus.
+#include <gtest/gtest.h>
+
+#include <unistd.h>
+
+#include <cstdlib>
+#include <filesystem>
+#include <fstream>
+#include <stdexcept>
+#include <string>
+
+#include "io/output.hpp"
+#include "io/scene.hpp"
+#include "io/scene_csv.hpp"
+#include "tests/fuzz/fuzz_driver.hpp"
+
+namespace fs = std::filesystem;
+
+namespace {
+
+const fs::path kCorpus = fs::path(MATEP_SOURCE_DIR) / "tests/fuzz/corpus";
+
+std::uint64_t env_or(const char* name, std::uint64_t def) {
+  const char* v = std::getenv(name);
+  return v && *v ? std::strtoull(v, nullptr, 10) : def;
+}
+
+#ifdef MATEP_SANITIZED
+constexpr bool kLimitMemory = false;  // the sanitizers reserve terabytes of address space
+constexpr std::uint64_t kShortRun = 1500;
+#else
+constexpr bool kLimitMemory = true;
+constexpr std::uint64_t kShortRun = 6000;
+#endif
+
+void scene_target(const std::string& text) {
+  try {
+    matep::load_scene_string(text, "fuzz.toml", kCorpus.string(), {});
+  } catch (const matep::SceneError&) {
+  } catch (const matep::IoError&) {
+  } catch (const std::invalid_argument&) {
+  }
+}
+
+void csv_target(const std::string& text) {
+  try {
+    matep::scene_detail::parse_csv(text);
+  } catch (const matep::scene_detail::CsvError&) {
+  }
+}
+
+// Runs one target over its corpus and fails with each failing input's number, reason and file.
+void fuzz(const std::string& name, std::string_view ext, const matep::fuzz::Target& target, std::uint64_t execs) {
+  const auto corpus = matep::fuzz::read_corpus(kCorpus, ext);
+  ASSERT_GE(corpus.size(), 5u) << "corpus " << kCorpus << " has too few " << ext << " files";
+  const std::uint64_t seed = env_or("MATEP_FUZZ_SEED", 1);
+  const std::uint64_t n = env_or("MATEP_FUZZ_EXECS", execs);
+  const double seconds = static_cast<double>(env_or("MATEP_FUZZ_SECONDS", 25));
+  const auto rep = matep::fuzz::run(corpus, seed, n, seconds, target, kLimitMemory);
+  std::printf("[ fuzz     ] %s: %llu executions in %.1f s, %.0f per second (seed %llu)\n", name.c_str(),
+              static_cast<unsigned long long>(rep.executions), rep.seconds, rep.per_second(),
+              static_cast<unsigned long long>(seed));
+  ::testing::Test::RecordProperty("executions", std::to_string(rep.executions));
+  ::testing::Test::RecordProperty("executions_per_second", std::to_string(rep.per_second()));
+  // Every corpus file ran, and a good part of the mutated inputs (unless a long run was cut by time).
+  EXPECT_GE(rep.executions, std::min<std::uint64_t>(n, corpus.size() + 100));
+  const char* dir_env = std::getenv("MATEP_FUZZ_CRASH_DIR");
+  const fs::path dir = dir_env && *dir_env ? fs::path(dir_env) : fs::temp_directory_path() / "matep_fuzz_crashes";
+  for (const auto& f : rep.failures) {
+    fs::create_directories(dir);
+    const fs::path p = dir / (name + "_" + std::to_string(seed) + "_" + std::to_string(f.index) + std::string(ext));
+    std::ofstream(p, std::ios::binary) << f.input;
+    ADD_FAILURE() << name << " input " << f.index << " (seed " << seed << "): " << f.why << "; saved as " << p
+                  << " (add it to tests/fuzz/corpus/ once fixed)";
+  }
+}
+
+}  // namespace
+
+TEST(Fuzz, SceneReaderNeverCrashesHangsOrOverallocates) {
+  fuzz("scene", ".toml", scene_target, kShortRun);
+}
+
+TEST(Fuzz, CsvParticleReaderNeverCrashesHangsOrOverallocates) {
+  fuzz("csv", ".csv", csv_target, 20 * kShortRun);
+}
+
+// The driver itself: an input is a function of (seed, index), the corpus comes first unchanged, and
+// it reports a target that crashes, hangs or throws what it must not, with the input that did it.
+TEST(Fuzz, DriverIsDeterministicAndCatchesCrashesHangsAndStrayExceptions) {
+  const std::vector<std::string> corpus{"a = 1\n", "[b]\nc = 2.5\n"};
+  EXPECT_EQ(matep::fuzz::make_input(corpus, 1, 0), corpus[0]);
+  EXPECT_EQ(matep::fuzz::make_input(corpus, 1, 1), corpus[1]);
+  EXPECT_EQ(matep::fuzz::make_input(corpus, 7, 40), matep::fuzz::make_input(corpus, 7, 40));
+  int differ = 0;
+  for (std::uint64_t i = 2; i < 50; ++i) differ += matep::fuzz::make_input(corpus, 1, i) != matep::fuzz::make_input(corpus, 2, i);
+  EXPECT_GT(differ, 40);
+
+  const auto bad = [](const std::string& s) {
+    if (s == "a = 1\n") std::raise(SIGSEGV);
+    if (s == "[b]\nc = 2.5\n") throw std::logic_error("stray");
+  };
+  const auto rep = matep::fuzz::run(corpus, 1, 10, 30.0, bad, kLimitMemory);
+  ASSERT_EQ(rep.failures.size(), 2u);
+  EXPECT_EQ(rep.failures[0].index, 0u);
+  EXPECT_EQ(rep.failures[0].why, "signal 11");
+  EXPECT_EQ(rep.failures[0].input, corpus[0]);
+  EXPECT_EQ(rep.failures[1].index, 1u);
+  EXPECT_EQ(rep.failures[1].why, "exception: stray");
+  EXPECT_EQ(rep.executions, 10u);
+
+  const auto hang = [](const std::string& s) {
+    if (s == "a = 1\n") ::pause();  // waits for a signal: the alarm
+  };
+  const auto rh = matep::fuzz::run(corpus, 1, 3, 30.0, hang, kLimitMemory);
+  ASSERT_EQ(rh.failures.size(), 1u);
+  EXPECT_EQ(rh.failures[0].why, "timeout (> 2 s)");
+  EXPECT_EQ(rh.executions, 3u);
+
+  if (kLimitMemory) {
+    const auto hog = [](const std::string& s) {
+      if (s == "a = 1\n") {
+        std::vector<char> big(std::size_t{3} << 30, 1);  // 3 GiB: past the limit
+        if (big[12345] != 1) std::abort();
+      }
+    };
+    const auto rm = matep::fuzz::run(corpus, 1, 2, 30.0, hog, kLimitMemory);
+    ASSERT_EQ(rm.failures.size(), 1u);
+    EXPECT_EQ(rm.failures[0].why, "exception: std::bad_alloc");
+  }
+}

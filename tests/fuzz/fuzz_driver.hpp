@@ -3,8 +3,8 @@
 // duplicated lines, numbers replaced by extremes, runs of brackets and dots). Execution i is a pure
 // function of (seed, i), so any input can be rebuilt from its number.
 //
-// The target runs in a forked worker under an address-space limit (1 GiB above what the process
-// holds; not under the sanitizers, which reserve far more) and a 2 s alarm per input. A worker
+// The target runs in a forked worker under an address-space limit (at most 1 GiB above what the
+// process holds; not under the sanitizers, which reserve far more) and a 2 s alarm per input. A worker
 // that dies (a crash, the alarm, an exception the target must not throw) is reported with its
 // input, which is written to a file for the corpus, and a fresh worker continues after it.
 #pragma once
@@ -176,9 +176,11 @@ inline std::uint64_t address_space_now() {
 }
 }  // namespace detail
 
-// Runs inputs [0, max_execs) (or until max_seconds pass) of the corpus through `target`.
+// Runs inputs [0, max_execs) (or until max_seconds pass) of the corpus through `target`, with
+// memory_bytes more address space than the process holds.
 inline Report run(const std::vector<std::string>& corpus, std::uint64_t seed, std::uint64_t max_execs,
-                  double max_seconds, const Target& target, bool limit_memory) {
+                  double max_seconds, const Target& target, bool limit_memory,
+                  std::uint64_t memory_bytes = std::uint64_t{1} << 30) {
   Report rep;
   auto* sh = static_cast<detail::Shared*>(
       ::mmap(nullptr, sizeof(detail::Shared), PROT_READ | PROT_WRITE, MAP_SHARED | MAP_ANONYMOUS, -1, 0));
@@ -192,7 +194,7 @@ inline Report run(const std::vector<std::string>& corpus, std::uint64_t seed, st
     const pid_t pid = ::fork();
     if (pid == 0) {
       if (limit_memory) {
-        const rlim_t cap = detail::address_space_now() + (rlim_t{1} << 30);
+        const rlim_t cap = detail::address_space_now() + memory_bytes;
         const rlimit lim{cap, cap};
         ::setrlimit(RLIMIT_AS, &lim);
       }

@@ -37,7 +37,7 @@ constexpr bool kLimitMemory = false;  // the sanitizers reserve terabytes of add
 constexpr std::uint64_t kShortRun = 1500;
 #else
 constexpr bool kLimitMemory = true;
-constexpr std::uint64_t kShortRun = 6000;
+constexpr std::uint64_t kShortRun = 60000;
 #endif
 
 void scene_target(const std::string& text) {

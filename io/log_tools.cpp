@@ -5,6 +5,10 @@
 #include <algorithm>
 #include <functional>
 #include <array>
+#include <fcntl.h>
+#include <sys/stat.h>
+#include <unistd.h>
+
 #include <cerrno>
 #include <charconv>
 #include <cmath>
@@ -16,6 +20,7 @@
 #include <new>
 #include <optional>
 #include <stdexcept>
+#include <unordered_map>
 #include <variant>
 
 #include "engine/rough_rules.hpp"
@@ -77,49 +82,12 @@ std::vector<std::uint32_t> parse_id_list(std::string_view list) {
 
 namespace {
 
-// A directory opens as a FILE* on Linux; say what it is before the reader sees it.
-void check_not_directory(const std::string& path) {
-  std::error_code ec;
-  if (fs::is_directory(path, ec))
-    throw IoError(fmt::format("{}: is a directory, not an event log", path));
-}
-
-// The reader has already validated the header; this adds the whole-number-of-records check.
-LogFile check_size(const std::string& path, const EventLogReader& reader) {
+LogFile log_file(const EventLogReader& reader) {
   LogFile lf;
   lf.header = reader.header();
-  std::error_code ec;
-  lf.file_size = fs::file_size(path, ec);
-  if (ec) throw IoError(fmt::format("{}: cannot read the event log size: {}", path, ec.message()));
-  const std::uint64_t body = lf.file_size - kEventLogHeaderSize;  // >= 0: the reader checked
-  lf.records = body / kEventRecordSize;
-  const std::uint64_t rest = body % kEventRecordSize;
-  if (rest != 0)
-    throw IoError(fmt::format("{}: truncated event record at byte offset {} ({} of {} bytes)", path,
-                              record_offset(lf.records), rest, kEventRecordSize));
+  lf.file_size = reader.file_size();
+  lf.records = reader.records();
   return lf;
-}
-
-struct FileCloser {
-  void operator()(std::FILE* f) const {
-    if (f) std::fclose(f);
-  }
-};
-using FilePtr = std::unique_ptr<std::FILE, FileCloser>;
-
-EventRecord read_record_at(const std::string& path, std::uint64_t index) {
-  FilePtr f(std::fopen(path.c_str(), "rb"));
-  if (!f) throw IoError(fmt::format("{}: cannot open event log: {}", path, std::strerror(errno)));
-  const std::uint64_t off = record_offset(index);
-  unsigned char buf[kEventRecordSize];
-  if (fseeko(f.get(), static_cast<off_t>(off), SEEK_SET) != 0 ||
-      std::fread(buf, 1, kEventRecordSize, f.get()) != kEventRecordSize)
-    throw IoError(fmt::format("{}: cannot read the event record at byte offset {}", path, off));
-  EventRecord r = decode_event_record(buf);
-  if (r.kind < 1 || r.kind > 7)
-    throw IoError(fmt::format("{}: corrupt event record at byte offset {} (kind {})", path, off,
-                              static_cast<int>(r.kind)));
-  return r;
 }
 
 bool is_collision(std::uint8_t kind) {
@@ -136,42 +104,83 @@ void cross3(const double* a, const double* b, double* out) {
   out[2] = a[0] * b[1] - a[1] * b[0];
 }
 
-// Output file that is removed again unless commit() is called.
-class OutFile {
+const char* file_type(mode_t m) {
+  if (S_ISDIR(m)) return "a directory";
+  if (S_ISCHR(m)) return "a character device";
+  if (S_ISBLK(m)) return "a block device";
+  if (S_ISFIFO(m)) return "a FIFO";
+  if (S_ISSOCK(m)) return "a socket";
+  return "not a regular file";
+}
+
+// The output of filter and export --out. It is written to a new hidden file in the folder of `out`
+// (.NAME.matep-XXXXXX, mkstemp) and renamed onto `out` by commit() only; on any failure just that
+// temporary is removed, so whatever was at `out` before stays as it was. An `out` that exists and
+// is not a regular file, or that is the input log (same device and inode), is refused before
+// anything is created.
+class AtomicOutput {
  public:
-  OutFile(const std::string& path, const char* mode) : path_(path) {
-    f_ = std::fopen(path.c_str(), mode);
-    if (!f_) throw IoError(fmt::format("{}: cannot open for writing: {}", path, std::strerror(errno)));
+  AtomicOutput(const std::string& out, const std::string& in) : out_(out) {
+    struct stat so {};
+    mode_t mode = 0;
+    if (::stat(out.c_str(), &so) == 0) {
+      if (!S_ISREG(so.st_mode))
+        throw IoError(fmt::format("{}: is {}, not a regular file: refusing to write the output there", out,
+                                  file_type(so.st_mode)));
+      struct stat si {};
+      if (::stat(in.c_str(), &si) == 0 && si.st_dev == so.st_dev && si.st_ino == so.st_ino)
+        throw IoError(fmt::format("{}: is the input log {} itself: refusing to overwrite it", out, in));
+      mode = so.st_mode & 07777;  // a replaced file keeps its permissions
+    } else {
+      mode = ::umask(0);
+      ::umask(mode);
+      mode = 0666 & ~mode;
+    }
+    const fs::path p(out);
+    const std::string dir = p.parent_path().empty() ? std::string(".") : p.parent_path().string();
+    std::string name = (fs::path(dir) / ("." + p.filename().string() + ".matep-XXXXXX")).string();
+    const int fd = ::mkostemp(name.data(), O_CLOEXEC);
+    if (fd < 0)
+      throw IoError(fmt::format("{}: cannot create a temporary file in {}: {}", out, dir, std::strerror(errno)));
+    tmp_ = name;
+    if (::fchmod(fd, mode) != 0 || !(f_ = ::fdopen(fd, "wb"))) {
+      const int err = errno;
+      ::close(fd);
+      ::unlink(tmp_.c_str());
+      throw IoError(fmt::format("{}: cannot write the temporary file {}: {}", out, tmp_, std::strerror(err)));
+    }
     buffer_.resize(1 << 20);
     std::setvbuf(f_, buffer_.data(), _IOFBF, buffer_.size());
   }
-  ~OutFile() {
-    if (f_) {
-      std::fclose(f_);
-      std::error_code ec;
-      fs::remove(path_, ec);
-    }
+  ~AtomicOutput() {
+    if (f_) std::fclose(f_);
+    if (!committed_) ::unlink(tmp_.c_str());
   }
-  OutFile(const OutFile&) = delete;
-  OutFile& operator=(const OutFile&) = delete;
+  AtomicOutput(const AtomicOutput&) = delete;
+  AtomicOutput& operator=(const AtomicOutput&) = delete;
   std::FILE* get() const { return f_; }
+  const std::string& path() const { return out_; }
   void write(const void* p, std::size_t n) {
-    if (n && std::fwrite(p, 1, n, f_) != n)
-      throw IoError(fmt::format("{}: write failed: {}", path_, std::strerror(errno)));
+    if (n && std::fwrite(p, 1, n, f_) != n) fail("write failed");
   }
+  // Flushes, syncs and closes the temporary, then renames it onto `out`.
   void commit() {
+    if (std::fflush(f_) != 0) fail("write failed");
+    if (::fsync(::fileno(f_)) != 0) fail("write failed");
     std::FILE* f = f_;
     f_ = nullptr;
-    if (std::fclose(f) != 0) {
-      std::error_code ec;
-      fs::remove(path_, ec);
-      throw IoError(fmt::format("{}: write failed: {}", path_, std::strerror(errno)));
-    }
+    if (std::fclose(f) != 0) fail("write failed");
+    if (std::rename(tmp_.c_str(), out_.c_str()) != 0) fail(fmt::format("cannot rename {} onto it", tmp_));
+    committed_ = true;
   }
 
  private:
-  std::string path_;
+  [[noreturn]] void fail(const std::string& what) {
+    throw IoError(fmt::format("{}: {}: {}", out_, what, std::strerror(errno)));
+  }
+  std::string out_, tmp_;
   std::FILE* f_ = nullptr;
+  bool committed_ = false;
   std::vector<char> buffer_;
 };
 
@@ -180,29 +189,70 @@ void write_all(std::FILE* f, const std::string& s, const std::string& what) {
     throw IoError(fmt::format("{}: write failed: {}", what, std::strerror(errno)));
 }
 
+// Collisions per particle id, in memory bounded by the log's size, not by the header's particle
+// count: a vector for ids below max(2^16, 4 x records) that grows with the largest id seen, a hash
+// map for larger ids (at most two per record).
+class IdCounts {
+ public:
+  explicit IdCounts(std::uint64_t records) : dense_limit_(std::max<std::uint64_t>(1 << 16, 4 * records)) {}
+  void add(std::uint32_t id) {
+    if (id < dense_limit_) {
+      if (id >= dense_.size())
+        dense_.resize(static_cast<std::size_t>(
+            std::min<std::uint64_t>(dense_limit_, std::max<std::uint64_t>(id + std::uint64_t{1}, 2 * dense_.size()))));
+      ++dense_[id];
+    } else {
+      ++sparse_[id];
+    }
+  }
+  // Particles counted, and the one with the most (lowest id on a tie).
+  void summarize(std::uint64_t& collided, std::uint32_t& busiest, std::uint64_t& most) const {
+    collided = 0;
+    most = 0;
+    busiest = 0;
+    auto see = [&](std::uint32_t id, std::uint64_t n) {
+      if (!n) return;
+      ++collided;
+      if (n > most || (n == most && id < busiest)) {
+        most = n;
+        busiest = id;
+      }
+    };
+    for (std::size_t p = 0; p < dense_.size(); ++p) see(static_cast<std::uint32_t>(p), dense_[p]);
+    for (const auto& [id, n] : sparse_) see(id, n);
+  }
+
+ private:
+  std::uint64_t dense_limit_;
+  std::vector<std::uint64_t> dense_;
+  std::unordered_map<std::uint32_t, std::uint64_t> sparse_;
+};
+
 }  // namespace
 
 LogFile inspect_log(const std::string& path) {
-  check_not_directory(path);
   EventLogReader reader(path);
-  return check_size(path, reader);
+  return log_file(reader);
 }
 
 // ---- stats ------------------------------------------------------------------------------------
 
 LogStats compute_log_stats(const std::string& path, std::size_t nbins) {
   if (nbins == 0) throw std::invalid_argument("--bins must be at least 1");
-  check_not_directory(path);
   EventLogReader reader(path);
   LogStats s;
   s.path = path;
-  s.file = check_size(path, reader);
-  if (s.file.records == 0) return s;
+  s.file = log_file(reader);
+  if (s.file.records == 0) {
+    EventRecord none;
+    reader.next(none);  // checks the (empty) last block
+    return s;
+  }
 
   EventRecord rec;
-  reader.next(rec);  // the first record (records > 0, size checked)
+  reader.next(rec);  // the first record (records > 0)
   s.t_first = rec.time;
-  s.t_last = read_record_at(path, s.file.records - 1).time;
+  s.t_last = reader.record_at(s.file.records - 1).time;
   const double span = s.t_last - s.t_first;
   s.bins.resize(nbins);
   for (std::size_t k = 0; k < nbins; ++k) {
@@ -212,31 +262,17 @@ LogStats compute_log_stats(const std::string& path, std::size_t nbins) {
   }
   const double bins_per_time = span > 0.0 ? static_cast<double>(nbins) / span : 0.0;
 
-  // Per-particle counts: the only O(particles) memory. Ids are 32-bit.
-  const std::uint64_t np = s.file.header.particles;
-  if (np > (std::uint64_t{1} << 32))
-    throw IoError(fmt::format("{}: corrupt event log header (particle count {} at byte offset 24)", path, np));
-  std::vector<std::uint64_t> per_particle;
-  try {
-    per_particle.assign(np, 0);
-  } catch (const std::bad_alloc&) {
-    throw IoError(fmt::format("{}: cannot allocate per-particle counts for {} particles (header, byte "
-                              "offset 24)",
-                              path, np));
-  }
+  // Per-particle counts: grown with the ids the records name (each < the header's count: the
+  // reader checks it), never sized from the header.
+  IdCounts per_particle(s.file.records);
   double e_sum = 0.0, e_comp = 0.0;
   std::uint64_t index = 0;
   do {
     s.by_kind[rec.kind] += 1;
     if (is_collision(rec.kind)) {
       const bool pair = is_pair(rec.kind);
-      if (rec.i >= per_particle.size() || (pair && rec.j >= per_particle.size()))
-        throw IoError(fmt::format("{}: corrupt event record at byte offset {} (particle {} in a log "
-                                  "of {} particles)",
-                                  path, record_offset(index),
-                                  rec.i >= per_particle.size() ? rec.i : rec.j, per_particle.size()));
-      ++per_particle[rec.i];
-      if (pair) ++per_particle[rec.j];
+      per_particle.add(rec.i);
+      if (pair) per_particle.add(rec.j);
 
       double k = std::floor((rec.time - s.t_first) * bins_per_time);
       if (!(k >= 0.0)) k = 0.0;  // also NaN
@@ -275,13 +311,7 @@ LogStats compute_log_stats(const std::string& path, std::size_t nbins) {
     const double w = b.t1 - b.t0;
     b.rate = w > 0.0 ? static_cast<double>(b.pair + b.wall) / w : 0.0;
   }
-  for (std::size_t p = 0; p < per_particle.size(); ++p) {
-    if (per_particle[p]) ++s.particles_collided;
-    if (per_particle[p] > s.busiest_count) {
-      s.busiest_count = per_particle[p];
-      s.busiest = static_cast<std::uint32_t>(p);
-    }
-  }
+  per_particle.summarize(s.particles_collided, s.busiest, s.busiest_count);
   return s;
 }
 
@@ -290,8 +320,8 @@ std::string format_log_stats(const LogStats& s) {
   auto o = std::back_inserter(out);
   const auto& h = s.file.header;
   fmt::format_to(o, "event log   {}\n", s.path);
-  fmt::format_to(o, "format      version {}, {}D, {} particles, {} bytes\n", h.version, h.dimension,
-                 h.particles, s.file.file_size);
+  fmt::format_to(o, "format      version {}{}, {}D, {} particles, {} bytes\n", h.version,
+                 h.fixed_grains() ? " (fixed grains)" : "", h.dimension, h.particles, s.file.file_size);
   fmt::format_to(o, "records     {}\n", s.file.records);
   if (s.file.records == 0) {
     fmt::format_to(o, "(no records)\n");
@@ -373,29 +403,18 @@ void append_csv_row(std::string& buf, const EventRecord& r) {
 
 FilterResult filter_log(const std::string& in, const std::string& out, const LogFilter& filter,
                         bool csv) {
-  check_not_directory(in);
-  EventLogReader reader(in);
-  check_size(in, reader);
-  std::error_code ec;
-  if (fs::exists(out, ec) && fs::equivalent(in, out, ec))
-    throw IoError(fmt::format("{}: the filtered log would overwrite its input", out));
-
-  unsigned char header[kEventLogHeaderSize];
-  {
-    FilePtr f(std::fopen(in.c_str(), "rb"));
-    if (!f || std::fread(header, 1, kEventLogHeaderSize, f.get()) != kEventLogHeaderSize)
-      throw IoError(fmt::format("{}: cannot read the event log header", in));
-  }
-  OutFile o(out, csv ? "w" : "wb");
+  EventLogReader reader(in);  // a bad header or a cut file is refused before any output exists
+  AtomicOutput o(out, in);
+  const EventLogHeader& h = reader.header();
+  std::optional<EventLogEncoder> enc;
   std::string text;
   if (csv)
     text = csv_header() + "\n";
   else
-    o.write(header, kEventLogHeaderSize);
+    enc.emplace(o.get(), out, h.dimension, h.particles, h.fixed_grains());
 
   FilterResult res;
   EventRecord rec;
-  unsigned char buf[kEventRecordSize];
   while (reader.next(rec)) {
     ++res.read;
     if (!filter.matches(rec)) continue;
@@ -407,19 +426,18 @@ FilterResult filter_log(const std::string& in, const std::string& out, const Log
         text.clear();
       }
     } else {
-      encode_event_record(rec, buf);
-      o.write(buf, kEventRecordSize);
+      enc->add(rec);
     }
   }
+  if (enc) enc->finish();
   o.write(text.data(), text.size());
   o.commit();
   return res;
 }
 
-std::uint64_t export_csv(const std::string& in, std::FILE* out) {
-  check_not_directory(in);
+namespace {
+std::uint64_t export_to(const std::string& in, std::FILE* out, const std::string& name) {
   EventLogReader reader(in);
-  check_size(in, reader);
   std::string text = csv_header() + "\n";
   std::uint64_t rows = 0;
   EventRecord rec;
@@ -427,31 +445,26 @@ std::uint64_t export_csv(const std::string& in, std::FILE* out) {
     append_csv_row(text, rec);
     ++rows;
     if (text.size() > (1u << 20)) {
-      write_all(out, text, "CSV output");
+      write_all(out, text, name);
       text.clear();
     }
   }
-  write_all(out, text, "CSV output");
+  write_all(out, text, name);
   return rows;
 }
+}  // namespace
+
+std::uint64_t export_csv(const std::string& in, std::FILE* out) { return export_to(in, out, "CSV output"); }
 
 std::uint64_t export_csv(const std::string& in, const std::string& out_path) {
   if (out_path.empty()) {
     const std::uint64_t n = export_csv(in, stdout);
-    std::fflush(stdout);
+    if (std::fflush(stdout) != 0) throw IoError(fmt::format("CSV output: write failed: {}", std::strerror(errno)));
     return n;
   }
-  {
-    // Validate the input before creating the output file.
-    check_not_directory(in);
-  EventLogReader reader(in);
-    check_size(in, reader);
-  }
-  std::error_code ec;
-  if (fs::exists(out_path, ec) && fs::equivalent(in, out_path, ec))
-    throw IoError(fmt::format("{}: the CSV would overwrite its input", out_path));
-  OutFile o(out_path, "w");
-  const std::uint64_t n = export_csv(in, o.get());
+  { EventLogReader check(in); }  // a bad header or a cut file is refused before any output exists
+  AtomicOutput o(out_path, in);
+  const std::uint64_t n = export_to(in, o.get(), out_path);
   o.commit();
   return n;
 }
@@ -587,6 +600,10 @@ std::optional<Violation> check_rough(const EventRecord& r, const EventLogHeader&
   }
   const double W = Ri * norm3(r.wi_before) + (pair ? Rj * norm3(r.wj_before) : 0.0);
   const double Vs = V + W;  // contact-point velocity scale
+  if (!std::isfinite(Vs))
+    return fail("range", fmt::format("the contact-point velocity scale overflows a double: |v| {:.6g} + R |w| {:.6g} "
+                                     "(R_i = {:.6g}, R_j = {:.6g})",
+                                     V, W, Ri, Rj));
   for (int b = 0; b < (pair ? 2 : 1); ++b) {
     const double R = b == 0 ? Ri : Rj;
     const double* t = b == 0 ? ti : tj;
@@ -649,6 +666,10 @@ std::optional<Violation> check_rough(const EventRecord& r, const EventLogHeader&
   };
   const double ke_b = ke(r.vi_before, r.vj_before, r.wi_before, r.wj_before);
   const double ke_a = ke(r.vi_after, r.vj_after, r.wi_after, r.wj_after);
+  if (!std::isfinite(ke_b) || !std::isfinite(ke_a))
+    return fail("range", fmt::format("the kinetic energy with rotation overflows a double: before {:.6g}, after {:.6g} "
+                                     "(R_i = {:.6g}, R_j = {:.6g})",
+                                     ke_b, ke_a, Ri, Rj));
   const double expected = 0.5 * (1.0 - r.e * r.e) * mstar * ub * ub + 0.5 * mt * (vt * vt - dot3(ta, ta));
   const double lost = ke_b - ke_a;
   if (!(std::abs(lost - expected) <= tol * ke_b) || !(lost >= -tol * ke_b))
@@ -668,7 +689,7 @@ std::optional<Violation> check_record(const EventRecord& r, const EventLogHeader
   };
   // A fixed partner (version 2): mj = +infinity, at rest; the collision is checked as one with a
   // wall at rest whose normal is the pair's.
-  const bool fixed = pair && h.version >= kEventLogVersionFixed && r.mj == std::numeric_limits<double>::infinity();
+  const bool fixed = pair && h.fixed_grains() && r.mj == std::numeric_limits<double>::infinity();
   const bool two = pair && !fixed;
   if (!all_finite(r, fixed)) return fail("finite values", "a field is NaN or infinite");
   if (fixed) {
@@ -722,6 +743,23 @@ std::optional<Violation> check_record(const EventRecord& r, const EventLogHeader
   }
   const double vib = norm3(r.vi_before), vjb = norm3(r.vj_before);
   const double V = vib + vjb;  // velocity scale
+  // Every comparison below is relative to a scale (V, momentum, kinetic energy, spin): one that
+  // overflows to infinity would let it pass, so a record whose scales overflow a double fails here.
+  {
+    auto ke = [&](const double* vi, const double* vj) {
+      return 0.5 * r.mi * dot3(vi, vi) + (two ? 0.5 * r.mj * dot3(vj, vj) : 0.0);
+    };
+    const double P = r.mi * vib + (two ? r.mj * vjb : 0.0);
+    const double Kb = ke(r.vi_before, r.vj_before), Ka = ke(r.vi_after, r.vj_after);
+    const double Kw = 0.5 * r.mi * std::max(dot3(gb, gb), dot3(ga, ga));  // in the partner's frame
+    const double W = std::max({dot3(r.wi_before, r.wi_before), dot3(r.wi_after, r.wi_after),
+                               dot3(r.wj_before, r.wj_before), dot3(r.wj_after, r.wj_after)});
+    if (!std::isfinite(V) || !std::isfinite(P) || !std::isfinite(Kb) || !std::isfinite(Ka) || !std::isfinite(Kw) ||
+        !std::isfinite(W))
+      return fail("range", fmt::format("a scale overflows a double: |vi| + |vj| = {:.6g}, momentum {:.6g}, kinetic "
+                                       "energy before {:.6g}, after {:.6g}, largest |w|^2 {:.6g}",
+                                       V, P, Kb, Ka, W));
+  }
   const double ub = dot3(gb, r.normal), ua = dot3(ga, r.normal);
   if (ub > tol * V)
     return fail("approach", fmt::format("normal relative velocity before (vi - vj).n = {:.17g} > 0: the "
@@ -847,9 +885,8 @@ std::optional<Violation> check_record(const EventRecord& r, const EventLogHeader
 
 VerifyResult verify_log(const std::string& path, const Scene* scene, double tol) {
   if (!(tol >= 0.0)) throw std::invalid_argument(fmt::format("--tol must be >= 0 (got {})", tol));
-  check_not_directory(path);
   EventLogReader reader(path);
-  const LogFile lf = check_size(path, reader);
+  const LogFile lf = log_file(reader);
   std::optional<SceneView> sv;
   if (scene) sv = view_scene(*scene, lf.header, path);
 
@@ -874,7 +911,7 @@ VerifyResult verify_log(const std::string& path, const Scene* scene, double tol)
     if (auto v = check_record(rec, lf.header, sv ? &*sv : nullptr, tol, rough)) {
       res.ok = false;
       res.index = index;
-      res.offset = record_offset(index);
+      res.offset = record_offset(lf.header, index);
       res.time = rec.time;
       res.kind = rec.kind;
       res.i = rec.i;

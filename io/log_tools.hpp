@@ -1,6 +1,7 @@
 // `matep log`: streaming tools over the binary event log events.bin (README, "Inspecting event
-// logs"). Every function reads the log record by record through EventLogReader: memory is
-// O(particles) at most (per-particle statistics), never O(records). A truncated or corrupt log
+// logs"). Every function reads the log block by block through EventLogReader, which checks every
+// block and record: memory is one block plus, for stats, per-particle counts that grow with the
+// ids seen (bounded by the log's size, never sized from the header). A truncated or corrupt log
 // throws IoError naming the file and the byte offset.
 #pragma once
 
@@ -25,20 +26,14 @@ std::uint8_t parse_event_kind(std::string_view word);
 // "3,17,42" -> {3, 17, 42} (sorted, duplicates removed); throws std::invalid_argument.
 std::vector<std::uint32_t> parse_id_list(std::string_view list);
 
-// Opens a log for streaming and checks that its size is the header plus a whole number of
-// records, so that a truncated log is refused before any record is processed (the message is
-// the reader's: "truncated event record at byte offset ...").
+// A log's header, size and record count (EventLogReader checks the header and that the size fits
+// the layout, so a truncated log is refused before any record is processed).
 struct LogFile {
   EventLogHeader header;
   std::uint64_t file_size = 0;
   std::uint64_t records = 0;
 };
 LogFile inspect_log(const std::string& path);
-
-// Byte offset of record `index` (0-based).
-inline std::uint64_t record_offset(std::uint64_t index) {
-  return kEventLogHeaderSize + index * kEventRecordSize;
-}
 
 // ---- stats ------------------------------------------------------------------------------------
 
@@ -74,10 +69,10 @@ struct LogStats {
   std::uint64_t e_min_index = 0, e_max_index = 0;
 };
 
-// Reads the header, the first record and the last record (seeking to file size - record size)
-// to fix the time bins, then streams every record once. Throws IoError on a bad log (also when
-// a record names a particle beyond the header's particle count) and std::invalid_argument when
-// bins == 0.
+// Reads the header, the first record and the last record (random access) to fix the time bins,
+// then streams every record once. The per-particle counts grow with the ids the records name, so
+// memory is bounded by the log's size, not by the header's particle count. Throws IoError on a bad
+// log and std::invalid_argument when bins == 0.
 LogStats compute_log_stats(const std::string& path, std::size_t bins);
 
 // The readable table printed by `matep log stats`.
@@ -97,9 +92,11 @@ struct FilterResult {
   std::uint64_t written = 0;
 };
 
-// Copies the records that match into `out`: the same binary format (the input's 64-byte header
-// verbatim, then the records) or, with csv, the CSV of export_csv. The output is removed again
-// when the input turns out to be bad. Refuses out == in.
+// Copies the records that match into `out`: an event log (version 3, with the input's dimension,
+// particle count and fixed-grain flag, whatever the input's version) or, with csv, the CSV of
+// export_csv. The output is written to a temporary file beside `out` and renamed onto it only on
+// success; a failure removes only that temporary. An `out` that exists and is not a regular file,
+// or is the input itself (same device and inode), is refused before anything is written.
 FilterResult filter_log(const std::string& in, const std::string& out, const LogFilter& filter,
                         bool csv);
 
@@ -107,7 +104,8 @@ FilterResult filter_log(const std::string& in, const std::string& out, const Log
 std::string csv_header();
 void append_csv_row(std::string& buf, const EventRecord& r);
 
-// Every record as CSV into `out` (stdout when out_path is empty). Returns the rows written.
+// Every record as CSV into `out` (stdout when out_path is empty; a file path is written as
+// filter_log writes). Returns the rows written.
 std::uint64_t export_csv(const std::string& in, const std::string& out_path);
 std::uint64_t export_csv(const std::string& in, std::FILE* out);
 

@@ -2,10 +2,20 @@
 
 #include <fmt/format.h>
 
+#include <fcntl.h>
+#include <sys/stat.h>
+#include <unistd.h>
+
+#include <algorithm>
 #include <cerrno>
 #include <cmath>
 #include <cstring>
 #include <filesystem>
+#include <limits>
+#include <utility>
+#if defined(__SSE4_2__) && defined(__x86_64__)
+#include <nmmintrin.h>
+#endif
 
 namespace matep {
 
@@ -107,79 +117,336 @@ EventRecord decode_event_record(const unsigned char* in) {
   return r;
 }
 
+// ---- CRC-32C -----------------------------------------------------------------------------------
+
+namespace {
+
+// Slicing-by-8 tables for the reflected Castagnoli polynomial.
+struct Crc32cTables {
+  std::uint32_t t[8][256];
+  Crc32cTables() {
+    for (std::uint32_t n = 0; n < 256; ++n) {
+      std::uint32_t c = n;
+      for (int k = 0; k < 8; ++k) c = (c & 1) ? (c >> 1) ^ 0x82F63B78u : c >> 1;
+      t[0][n] = c;
+    }
+    for (std::uint32_t n = 0; n < 256; ++n)
+      for (int s = 1; s < 8; ++s) t[s][n] = (t[s - 1][n] >> 8) ^ t[0][t[s - 1][n] & 0xFF];
+  }
+};
+const Crc32cTables& crc_tables() {
+  static const Crc32cTables tables;
+  return tables;
+}
+
+}  // namespace
+
+std::uint32_t crc32c_portable(const void* data, std::size_t n, std::uint32_t crc) {
+  const auto& t = crc_tables().t;
+  const auto* p = static_cast<const unsigned char*>(data);
+  std::uint32_t c = ~crc;
+  for (; n >= 8; n -= 8, p += 8) {
+    std::uint32_t lo, hi;
+    std::memcpy(&lo, p, 4);
+    std::memcpy(&hi, p + 4, 4);
+    lo ^= c;
+    c = t[7][lo & 0xFF] ^ t[6][(lo >> 8) & 0xFF] ^ t[5][(lo >> 16) & 0xFF] ^ t[4][lo >> 24] ^ t[3][hi & 0xFF] ^
+        t[2][(hi >> 8) & 0xFF] ^ t[1][(hi >> 16) & 0xFF] ^ t[0][hi >> 24];
+  }
+  for (; n; --n, ++p) c = (c >> 8) ^ t[0][(c ^ *p) & 0xFF];
+  return ~c;
+}
+
+std::uint32_t crc32c(const void* data, std::size_t n, std::uint32_t crc) {
+#if defined(__SSE4_2__) && defined(__x86_64__)
+  const auto* p = static_cast<const unsigned char*>(data);
+  std::uint64_t c = ~crc;
+  for (; n >= 8; n -= 8, p += 8) {
+    std::uint64_t v;
+    std::memcpy(&v, p, 8);
+    c = _mm_crc32_u64(c, v);
+  }
+  std::uint32_t c32 = static_cast<std::uint32_t>(c);
+  for (; n; --n, ++p) c32 = _mm_crc32_u8(c32, *p);
+  return ~c32;
+#else
+  return crc32c_portable(data, n, crc);
+#endif
+}
+
+// ---- event log layout -------------------------------------------------------------------------
+
+namespace {
+
+std::uint64_t block_bytes(const EventLogHeader& h) {
+  return std::uint64_t{h.block_records} * kEventRecordSize + kEventBlockTrailerSize;
+}
+bool has_blocks(const EventLogHeader& h) { return h.version >= kEventLogVersionChecked; }
+
+}  // namespace
+
+std::uint64_t record_offset(const EventLogHeader& h, std::uint64_t index) {
+  if (!has_blocks(h)) return kEventLogHeaderSize + index * kEventRecordSize;
+  const std::uint64_t k = h.block_records;
+  return kEventLogHeaderSize + (index / k) * block_bytes(h) + (index % k) * kEventRecordSize;
+}
+
+std::uint64_t block_offset(const EventLogHeader& h, std::uint64_t index) {
+  if (!has_blocks(h)) return record_offset(h, index);
+  return kEventLogHeaderSize + (index / h.block_records) * block_bytes(h);
+}
+
+std::string check_event_record(const EventRecord& r, const EventLogHeader& h) {
+  if (r.kind < 1 || r.kind > 7) return fmt::format("kind {} (known kinds are 1 to 7)", static_cast<int>(r.kind));
+  const bool pair = r.kind == static_cast<std::uint8_t>(EventKind::PairCollision);
+  auto bad = [](double v) { return !std::isfinite(v); };
+  if (bad(r.time)) return fmt::format("time = {}", r.time);
+  if (bad(r.mi)) return fmt::format("mi = {}", r.mi);
+  const bool fixed_mj = pair && h.fixed_grains() && r.mj == std::numeric_limits<double>::infinity();
+  if (bad(r.mj) && !fixed_mj)
+    return fmt::format("mj = {}{}", r.mj,
+                       pair && r.mj > 0.0 ? " (+infinity marks a fixed partner only in a log with fixed grains)" : "");
+  if (bad(r.e)) return fmt::format("e = {}", r.e);
+  const std::pair<const char*, const double*> vecs[] = {
+      {"normal", r.normal},       {"vi_before", r.vi_before}, {"vj_before", r.vj_before},
+      {"vi_after", r.vi_after},   {"vj_after", r.vj_after},   {"wi_before", r.wi_before},
+      {"wj_before", r.wj_before}, {"wi_after", r.wi_after},   {"wj_after", r.wj_after}};
+  for (const auto& [name, v] : vecs)
+    for (int c = 0; c < 3; ++c)
+      if (bad(v[c])) return fmt::format("{}.{} = {}", name, "xyz"[c], v[c]);
+  if (r.kind != static_cast<std::uint8_t>(EventKind::CellCrossing) && !(r.mi > 0.0))
+    return fmt::format("mi = {} (a mass must be > 0)", r.mi);
+  if (pair && !(r.mj > 0.0)) return fmt::format("mj = {} (a mass must be > 0)", r.mj);
+  if (r.kind == static_cast<std::uint8_t>(EventKind::Inflow) && !(r.mj > 0.0))
+    return fmt::format("mj = {} (an inflow's radius must be > 0)", r.mj);
+  if (r.i >= h.particles) return fmt::format("i = {} (the log has {} particles)", r.i, h.particles);
+  if (pair && r.j >= h.particles) return fmt::format("j = {} (the log has {} particles)", r.j, h.particles);
+  return {};
+}
+
 // ---- event log reader -----------------------------------------------------------------------
 
 EventLogReader::EventLogReader(const std::string& path) : path_(path) {
-  f_ = std::fopen(path.c_str(), "rb");
-  if (!f_) throw IoError(fmt::format("{}: cannot open event log: {}", path, std::strerror(errno)));
-  std::fseek(f_, 0, SEEK_END);
-  size_ = static_cast<std::uint64_t>(std::ftell(f_));
-  std::fseek(f_, 0, SEEK_SET);
+  fd_ = ::open(path.c_str(), O_RDONLY | O_CLOEXEC);
+  if (fd_ < 0) throw IoError(fmt::format("{}: cannot open event log: {}", path, std::strerror(errno)));
+  struct stat st {};
+  if (::fstat(fd_, &st) != 0) {
+    const int err = errno;
+    ::close(fd_);
+    throw IoError(fmt::format("{}: cannot read the event log's size: {}", path, std::strerror(err)));
+  }
+  if (!S_ISREG(st.st_mode)) {
+    ::close(fd_);
+    throw IoError(fmt::format("{}: is {}, not an event log", path,
+                              S_ISDIR(st.st_mode) ? "a directory" : "not a regular file"));
+  }
+  size_ = static_cast<std::uint64_t>(st.st_size);
   unsigned char h[kEventLogHeaderSize];
-  if (size_ < kEventLogHeaderSize || std::fread(h, 1, kEventLogHeaderSize, f_) != kEventLogHeaderSize)
-    throw IoError(fmt::format("{}: truncated event log header at byte offset {} (file has {} bytes, "
-                              "header needs {})",
-                              path, 0, size_, kEventLogHeaderSize));
+  auto fail = [&](const std::string& msg) {
+    ::close(fd_);
+    fd_ = -1;
+    throw IoError(msg);
+  };
+  if (size_ < kEventLogHeaderSize ||
+      ::pread(fd_, h, kEventLogHeaderSize, 0) != static_cast<ssize_t>(kEventLogHeaderSize))
+    fail(fmt::format("{}: truncated event log header at byte offset {} (file has {} bytes, header needs {})", path, 0,
+                     size_, kEventLogHeaderSize));
   if (std::memcmp(h, kEventLogMagic, 8) != 0)
-    throw IoError(fmt::format("{}: not a matep event log (bad magic at byte offset 0)", path));
+    fail(fmt::format("{}: not a matep event log (bad magic at byte offset 0)", path));
   header_.version = get_u32(h + 8);
   header_.dimension = get_u32(h + 12);
   header_.record_size = get_u32(h + 16);
   header_.particles = get_u64(h + 24);
-  if (header_.version != kEventLogVersion && header_.version != kEventLogVersionFixed)
-    throw IoError(fmt::format("{}: event log version {} at byte offset 8 is not supported (this "
-                              "build reads versions {} and {})",
-                              path, header_.version, kEventLogVersion, kEventLogVersionFixed));
-  if (header_.record_size != kEventRecordSize || (header_.dimension != 2 && header_.dimension != 3))
-    throw IoError(fmt::format("{}: corrupt event log header (record size {}, dimension {})", path,
-                              header_.record_size, header_.dimension));
-  offset_ = kEventLogHeaderSize;
+  if (header_.version < kEventLogVersion || header_.version > kEventLogVersionChecked)
+    fail(fmt::format("{}: event log version {} at byte offset 8 is not supported (this build reads versions {} to {})",
+                     path, header_.version, kEventLogVersion, kEventLogVersionChecked));
+  if (has_blocks(header_)) {
+    const std::uint32_t stored = get_u32(h + 60), computed = crc32c(h, 60);
+    if (stored != computed)
+      fail(fmt::format("{}: corrupt event log header: checksum at byte offset 60 is {:#010x}, bytes 0..59 give "
+                       "{:#010x}",
+                       path, stored, computed));
+    header_.flags = get_u32(h + 20);
+    header_.block_records = get_u32(h + 32);
+    if (header_.flags & ~kEventLogFlagFixed)
+      fail(fmt::format("{}: corrupt event log header: unknown flags {:#x} at byte offset 20", path, header_.flags));
+    if (header_.block_records < 1 || header_.block_records > kEventLogMaxBlockRecords)
+      fail(fmt::format("{}: corrupt event log header: block length {} at byte offset 32 (expected 1 to {})", path,
+                       header_.block_records, kEventLogMaxBlockRecords));
+  }
+  if (header_.record_size != kEventRecordSize)
+    fail(fmt::format("{}: corrupt event log header: record size {} at byte offset 16 (expected {})", path,
+                     header_.record_size, kEventRecordSize));
+  if (header_.dimension != 2 && header_.dimension != 3)
+    fail(fmt::format("{}: corrupt event log header: dimension {} at byte offset 12 (expected 2 or 3)", path,
+                     header_.dimension));
+  // Ids are 32-bit: a larger count cannot come from a run.
+  if (header_.particles > (std::uint64_t{1} << 32))
+    fail(fmt::format("{}: corrupt event log header: particle count {} at byte offset 24 (ids are 32-bit)", path,
+                     header_.particles));
+  // The layout fixes the number of records; anything else is a cut (or padded) file.
+  const std::uint64_t body = size_ - kEventLogHeaderSize;
+  if (!has_blocks(header_)) {
+    records_ = body / kEventRecordSize;
+    if (body % kEventRecordSize != 0)
+      fail(fmt::format("{}: truncated event record at byte offset {} ({} of {} bytes)", path,
+                       record_offset(header_, records_), body % kEventRecordSize, kEventRecordSize));
+  } else {
+    const std::uint64_t full = body / block_bytes(header_), tail = body % block_bytes(header_);
+    if (tail < kEventBlockTrailerSize || (tail - kEventBlockTrailerSize) % kEventRecordSize != 0)
+      fail(fmt::format("{}: truncated event log: the last block, at byte offset {}, has {} bytes (not whole {}-byte "
+                       "records and a {}-byte checksum record)",
+                       path, kEventLogHeaderSize + full * block_bytes(header_), tail, kEventRecordSize,
+                       kEventBlockTrailerSize));
+    records_ = full * header_.block_records + (tail - kEventBlockTrailerSize) / kEventRecordSize;
+  }
 }
 
 EventLogReader::~EventLogReader() {
-  if (f_) std::fclose(f_);
+  if (fd_ >= 0) ::close(fd_);
+}
+
+std::uint64_t EventLogReader::load_block(std::uint64_t index, std::vector<unsigned char>& buf) {
+  // Versions 1 and 2 have no blocks: chunks of kEventLogBlockRecords records, unchecked.
+  const std::uint64_t k = has_blocks(header_) ? header_.block_records : kEventLogBlockRecords;
+  const std::uint64_t first = index - index % k;
+  const std::uint64_t count = std::min<std::uint64_t>(k, records_ - first);
+  const bool last = first + k > records_;  // the block holding records_ - 1, or the empty one after
+  const std::uint64_t off = block_offset(header_, first);
+  const std::uint64_t bytes = count * kEventRecordSize + (has_blocks(header_) ? kEventBlockTrailerSize : 0);
+  buf.resize(bytes);  // <= the file's size (the layout was checked against it)
+  std::uint64_t got = 0;
+  while (got < bytes) {
+    const ssize_t n = ::pread(fd_, buf.data() + got, bytes - got, static_cast<off_t>(off + got));
+    if (n <= 0)
+      throw IoError(fmt::format("{}: cannot read the block at byte offset {}: {}", path_, off,
+                                n < 0 ? std::strerror(errno) : "the file got shorter"));
+    got += static_cast<std::uint64_t>(n);
+  }
+  if (has_blocks(header_)) {
+    const unsigned char* t = buf.data() + count * kEventRecordSize;
+    const std::uint32_t stored = get_u32(t + 24);
+    const std::uint32_t computed = crc32c(t, 24, crc32c(buf.data(), count * kEventRecordSize));
+    std::string why;
+    if (std::memcmp(t, kEventBlockMagic, 8) != 0)
+      why = "no checksum record (bad magic)";
+    else if (stored != computed)
+      why = fmt::format("checksum {:#010x}, the bytes give {:#010x}", stored, computed);
+    else if (get_u32(t + 8) != count || get_u64(t + 16) != first + count ||
+             (get_u32(t + 12) & kEventBlockFlagLast) != (last ? kEventBlockFlagLast : 0u))
+      why = fmt::format("its checksum record says {} records, {} in all{}, the file's layout {}, {}{}", get_u32(t + 8),
+                        get_u64(t + 16), (get_u32(t + 12) & kEventBlockFlagLast) ? ", last" : "", count,
+                        first + count, last ? ", last" : "");
+    if (!why.empty())
+      throw IoError(fmt::format("{}: corrupt block at byte offset {} ({}): {}", path_, off,
+                                count ? fmt::format("records {} to {}", first, first + count - 1)
+                                      : std::string("the empty last block"),
+                                why));
+  }
+  return first;
+}
+
+EventRecord EventLogReader::decode_checked(const unsigned char* p, std::uint64_t index) const {
+  EventRecord r = decode_event_record(p);
+  const std::string why = check_event_record(r, header_);
+  if (!why.empty())
+    throw IoError(fmt::format("{}: corrupt event record {} at byte offset {}: {}", path_, index,
+                              record_offset(header_, index), why));
+  return r;
 }
 
 bool EventLogReader::next(EventRecord& rec) {
-  if (offset_ == size_) return false;
-  unsigned char buf[kEventRecordSize];
-  const std::size_t got = std::fread(buf, 1, kEventRecordSize, f_);
-  if (got != kEventRecordSize)
-    throw IoError(fmt::format("{}: truncated event record at byte offset {} ({} of {} bytes)", path_,
-                              offset_, got, kEventRecordSize));
-  rec = decode_event_record(buf);
-  if (rec.kind < 1 || rec.kind > 7)
-    throw IoError(fmt::format("{}: corrupt event record at byte offset {} (kind {})", path_, offset_,
-                              static_cast<int>(rec.kind)));
-  offset_ += kEventRecordSize;
+  if (index_ >= records_) {
+    // A version-3 log whose records fill whole blocks ends with an empty last block: check it too.
+    if (has_blocks(header_) && !end_checked_ && records_ % header_.block_records == 0) load_block(records_, block_);
+    end_checked_ = true;
+    block_.clear();
+    return false;
+  }
+  if (block_.empty() || index_ >= block_first_ + block_count_) {
+    block_first_ = load_block(index_, block_);
+    block_count_ = (block_.size() - (has_blocks(header_) ? kEventBlockTrailerSize : 0)) / kEventRecordSize;
+  }
+  rec = decode_checked(block_.data() + (index_ - block_first_) * kEventRecordSize, index_);
+  ++index_;
   return true;
 }
 
-// ---- event log writer -----------------------------------------------------------------------
+EventRecord EventLogReader::record_at(std::uint64_t index) {
+  if (index >= records_)
+    throw IoError(fmt::format("{}: no record {} (the log has {})", path_, index, records_));
+  std::vector<unsigned char> buf;
+  const std::uint64_t first = load_block(index, buf);
+  return decode_checked(buf.data() + (index - first) * kEventRecordSize, index);
+}
 
-template <int D>
-EventLogWriter<D>::EventLogWriter(const std::string& path, std::uint64_t particles, std::uint32_t version)
-    : path_(path) {
-  f_ = open_or_throw(path, "wb");
-  buffer_.resize(1 << 20);
-  std::setvbuf(f_, buffer_.data(), _IOFBF, buffer_.size());
+// ---- event log encoder and writer ------------------------------------------------------------
+
+EventLogEncoder::EventLogEncoder(std::FILE* f, std::string path, std::uint32_t dimension, std::uint64_t particles,
+                                 bool fixed_grains, std::uint32_t block_records)
+    : f_(f), path_(std::move(path)), k_(block_records) {
+  if (k_ < 1 || k_ > kEventLogMaxBlockRecords) throw std::invalid_argument("event log block length out of range");
+  block_.resize(std::size_t{k_} * kEventRecordSize + kEventBlockTrailerSize);
   unsigned char h[kEventLogHeaderSize] = {};
   std::memcpy(h, kEventLogMagic, 8);
-  put_u32(h + 8, version);
-  put_u32(h + 12, D);
+  put_u32(h + 8, kEventLogVersionChecked);
+  put_u32(h + 12, dimension);
   put_u32(h + 16, kEventRecordSize);
+  put_u32(h + 20, fixed_grains ? kEventLogFlagFixed : 0u);
   put_u64(h + 24, particles);
-  if (std::fwrite(h, 1, kEventLogHeaderSize, f_) != kEventLogHeaderSize) {
-    const int err = errno;
+  put_u32(h + 32, k_);
+  put_u32(h + 60, crc32c(h, 60));
+  if (std::fwrite(h, 1, kEventLogHeaderSize, f_) != kEventLogHeaderSize)
+    throw WriteError(fmt::format("{}: write failed: {}", path_, std::strerror(errno)));
+}
+
+void EventLogEncoder::add(const EventRecord& r) {
+  if (finished_) throw std::logic_error("EventLogEncoder::add after finish");
+  encode_event_record(r, block_.data() + in_block_ * kEventRecordSize);
+  ++total_;
+  if (++in_block_ == k_) flush_block(false);
+}
+
+void EventLogEncoder::flush_block(bool last) {
+  unsigned char* t = block_.data() + in_block_ * kEventRecordSize;
+  std::memcpy(t, kEventBlockMagic, 8);
+  put_u32(t + 8, static_cast<std::uint32_t>(in_block_));
+  put_u32(t + 12, last ? kEventBlockFlagLast : 0u);
+  put_u64(t + 16, total_);
+  put_u32(t + 24, crc32c(t, 24, crc32c(block_.data(), in_block_ * kEventRecordSize)));
+  put_u32(t + 28, 0);
+  const std::size_t n = in_block_ * kEventRecordSize + kEventBlockTrailerSize;
+  in_block_ = 0;
+  if (std::fwrite(block_.data(), 1, n, f_) != n)
+    throw WriteError(fmt::format("{}: write failed: {}", path_, std::strerror(errno)));
+}
+
+void EventLogEncoder::finish() {
+  if (finished_) return;
+  finished_ = true;
+  flush_block(true);
+}
+
+template <int D>
+EventLogWriter<D>::EventLogWriter(const std::string& path, std::uint64_t particles, bool fixed_grains)
+    : path_(path) {
+  f_ = open_or_throw(path, "wb");
+  std::setvbuf(f_, nullptr, _IONBF, 0);  // the encoder writes whole blocks
+  try {
+    enc_ = std::make_unique<EventLogEncoder>(f_, path, D, particles, fixed_grains);
+  } catch (...) {
     std::fclose(f_);
     f_ = nullptr;
-    throw WriteError(fmt::format("{}: write failed: {}", path_, std::strerror(err)));
+    throw;
   }
 }
 
 template <int D>
 EventLogWriter<D>::~EventLogWriter() {
-  if (f_) std::fclose(f_);
+  try {
+    close();
+  } catch (const IoError&) {  // close() reports it when called; a destructor cannot
+  }
 }
 
 template <int D>
@@ -187,13 +454,19 @@ void EventLogWriter<D>::close() {
   if (!f_) return;
   std::FILE* f = f_;
   f_ = nullptr;
-  const bool bad = std::ferror(f) != 0;
-  if (std::fclose(f) != 0 || bad)
-    throw WriteError(fmt::format("{}: write failed: {}", path_, std::strerror(errno)));
+  std::string err;
+  try {
+    enc_->finish();
+  } catch (const IoError& e) {
+    err = e.what();
+  }
+  if (std::fclose(f) != 0 && err.empty()) err = fmt::format("{}: write failed: {}", path_, std::strerror(errno));
+  if (!err.empty()) throw WriteError(err);
 }
 
 template <int D>
 void EventLogWriter<D>::on_collision(const CollisionRecord<D>& c) {
+  if (!f_) return;
   EventRecord r;
   r.time = c.time;
   r.kind = static_cast<std::uint8_t>(c.kind);
@@ -211,10 +484,7 @@ void EventLogWriter<D>::on_collision(const CollisionRecord<D>& c) {
   spin3<D>(c.wj_before, r.wj_before);
   spin3<D>(c.wi_after, r.wi_after);
   spin3<D>(c.wj_after, r.wj_after);
-  unsigned char buf[kEventRecordSize];
-  encode_event_record(r, buf);
-  if (std::fwrite(buf, 1, kEventRecordSize, f_) != kEventRecordSize)
-    throw WriteError(fmt::format("{}: write failed: {}", path_, std::strerror(errno)));
+  enc_->add(r);
 }
 
 // A grain leaving through an outlet: kind 6, i its id, j the outlet's index, mi its mass, its

@@ -21,13 +21,32 @@ namespace matep {
 // of kEventRecordSize bytes (vectors always have 3 components; 2D leaves z = 0 and stores the
 // disk spin in the z component).
 // Version 2 is the same layout, written by runs with fixed grains: a pair record whose partner j is
-// a fixed grain has mj = +infinity and vj, wj = 0. A reader takes both versions (version 1 never
-// has an infinite mass); runs without fixed grains still write version 1.
+// a fixed grain has mj = +infinity and vj, wj = 0 (version 1 never has an infinite mass).
+// Version 3 (written since issue 17) adds checksums. Header: bytes 20..23 are flags (bit 0: fixed
+// grains, the version-2 meaning of mj = +infinity; other bits 0), bytes 32..35 the block length K
+// in records, bytes 60..63 the CRC-32C of bytes 0..59. The records come in blocks of K, each
+// followed by a 32-byte checksum record: "MATEPBLK", u32 records in the block, u32 flags (bit 0:
+// the last block), u64 records up to and including this block, u32 CRC-32C of the block's records
+// and of bytes 0..23 of the checksum record, u32 zero. The last block (0..K-1 records) always ends
+// the file, so a cut at a block boundary is seen too. Readers take all three versions.
 inline constexpr char kEventLogMagic[8] = {'M', 'A', 'T', 'E', 'P', 'L', 'O', 'G'};
+inline constexpr char kEventBlockMagic[8] = {'M', 'A', 'T', 'E', 'P', 'B', 'L', 'K'};
 inline constexpr std::uint32_t kEventLogVersion = 1;
 inline constexpr std::uint32_t kEventLogVersionFixed = 2;
+inline constexpr std::uint32_t kEventLogVersionChecked = 3;  // the version writers write
 inline constexpr std::size_t kEventLogHeaderSize = 64;
 inline constexpr std::size_t kEventRecordSize = 264;
+inline constexpr std::size_t kEventBlockTrailerSize = 32;
+inline constexpr std::uint32_t kEventLogBlockRecords = 1024;  // K of the logs this build writes
+inline constexpr std::uint32_t kEventLogMaxBlockRecords = 65536;  // the largest K a reader takes
+inline constexpr std::uint32_t kEventLogFlagFixed = 1;
+inline constexpr std::uint32_t kEventBlockFlagLast = 1;
+
+// CRC-32C (Castagnoli polynomial 0x1EDC6F41, reflected 0x82F63B78; RFC 3720, section 12.1 and
+// appendix B.4): crc32c("123456789") = 0xE3069283. `crc` continues an earlier value.
+std::uint32_t crc32c(const void* data, std::size_t n, std::uint32_t crc = 0);
+// The same, table-driven on every machine (crc32c may use the SSE4.2 instruction).
+std::uint32_t crc32c_portable(const void* data, std::size_t n, std::uint32_t crc = 0);
 
 // The record as read back (3-component vectors regardless of dimension).
 struct EventRecord {
@@ -43,46 +62,101 @@ void encode_event_record(const EventRecord& r, unsigned char* out);
 EventRecord decode_event_record(const unsigned char* in);
 
 struct EventLogHeader {
-  std::uint32_t version = kEventLogVersion;
+  std::uint32_t version = kEventLogVersionChecked;
   std::uint32_t dimension = 3;
   std::uint32_t record_size = kEventRecordSize;
+  std::uint32_t flags = 0;              // version 3
   std::uint64_t particles = 0;
+  std::uint32_t block_records = 0;      // version 3: K; 0 in versions 1 and 2 (no blocks)
+  // Pair records may have mj = +infinity (a fixed partner).
+  bool fixed_grains() const {
+    return version == kEventLogVersionFixed || (version >= kEventLogVersionChecked && (flags & kEventLogFlagFixed));
+  }
 };
 
-// Streams records from events.bin; throws IoError naming the file and byte offset on a bad
-// header, a wrong version or a truncated record.
+// Byte offset of record `index` (0-based) and of the block holding it (version 3; versions 1 and
+// 2: the record's own offset).
+std::uint64_t record_offset(const EventLogHeader& h, std::uint64_t index);
+std::uint64_t block_offset(const EventLogHeader& h, std::uint64_t index);
+
+// The checks every record gets when read (known kind 1..7; time, masses, e and every vector
+// finite, mj = +infinity only for a pair record of a log with fixed grains; mi > 0 for every
+// kind but 3, mj > 0 for pairs, the radius mj > 0 for inflows; i < particles, and j < particles
+// for pairs). Returns the failing field and why, or an empty string.
+std::string check_event_record(const EventRecord& r, const EventLogHeader& h);
+
+// Streams records from events.bin, one block at a time: memory is bounded by one block (at most
+// kEventLogMaxBlockRecords records, and never more than the file holds), never by the header's
+// counts. Throws IoError naming the file and the byte offset on a bad header, an unknown
+// version, a file that is not a whole number of records (blocks), a block whose checksum does
+// not match and a record that fails check_event_record.
 class EventLogReader {
  public:
   explicit EventLogReader(const std::string& path);
   ~EventLogReader();
+  EventLogReader(const EventLogReader&) = delete;
+  EventLogReader& operator=(const EventLogReader&) = delete;
   const EventLogHeader& header() const { return header_; }
-  bool next(EventRecord& rec);  // false at a clean end of file
-  std::uint64_t offset() const { return offset_; }
+  std::uint64_t records() const { return records_; }      // from the file's size and layout
+  std::uint64_t file_size() const { return size_; }
+  bool next(EventRecord& rec);  // false at the end
+  // Byte offset of the record last returned by next().
+  std::uint64_t offset() const { return index_ ? record_offset(header_, index_ - 1) : kEventLogHeaderSize; }
+  // Random access (the block holding it is read and checked); does not move next().
+  EventRecord record_at(std::uint64_t index);
 
  private:
+  // Reads and checks the block holding record `index` into buf; returns its first record's index.
+  std::uint64_t load_block(std::uint64_t index, std::vector<unsigned char>& buf);
+  EventRecord decode_checked(const unsigned char* p, std::uint64_t index) const;
   std::string path_;
-  std::FILE* f_ = nullptr;
+  int fd_ = -1;
   EventLogHeader header_;
-  std::uint64_t offset_ = 0;
   std::uint64_t size_ = 0;
+  std::uint64_t records_ = 0;
+  std::uint64_t index_ = 0;        // next record to return
+  std::uint64_t block_first_ = 0;  // index of the first record in block_
+  std::uint64_t block_count_ = 0;  // records in block_
+  bool end_checked_ = false;       // the empty last block (version 3) was read
+  std::vector<unsigned char> block_;
+};
+
+// Writes the version-3 layout into an open file (the EventLogWriter's and `matep log filter`'s
+// encoder). Every write is checked: IoError names `path` and the OS error.
+class EventLogEncoder {
+ public:
+  EventLogEncoder(std::FILE* f, std::string path, std::uint32_t dimension, std::uint64_t particles, bool fixed_grains,
+                  std::uint32_t block_records = kEventLogBlockRecords);
+  void add(const EventRecord& r);
+  void finish();  // the last block (0..K-1 records); then nothing more may be added
+
+ private:
+  void flush_block(bool last);
+  std::FILE* f_;
+  std::string path_;
+  std::uint32_t k_;
+  std::uint64_t total_ = 0;
+  std::size_t in_block_ = 0;
+  bool finished_ = false;
+  std::vector<unsigned char> block_;
 };
 
 template <int D>
 class EventLogWriter final : public Observer<D> {
  public:
-  // version: kEventLogVersion, or kEventLogVersionFixed for a system with fixed grains.
-  EventLogWriter(const std::string& path, std::uint64_t particles, std::uint32_t version = kEventLogVersion);
+  // Writes version 3; fixed_grains sets the header flag (pair records may have mj = +infinity).
+  EventLogWriter(const std::string& path, std::uint64_t particles, bool fixed_grains);
   ~EventLogWriter() override;
   bool wants_collisions() const override { return true; }
   void on_collision(const CollisionRecord<D>& rec) override;
   void on_outflow(const OutflowRecord<D>& rec) override;
   void on_inflow(const InflowRecord<D>& rec) override;
-  void close();  // checked (WriteError); the destructor closes unchecked
+  void close();  // writes the last block; throws WriteError when a write or the close fails
 
  private:
   std::string path_;
   std::FILE* f_ = nullptr;
-  std::vector<char> buffer_;
+  std::unique_ptr<EventLogEncoder> enc_;
 };
 
 class ThermoCsvWriter final : public Observer<2>, public Observer<3> {

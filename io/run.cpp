@@ -243,7 +243,7 @@ RunOutcome run_system(const Scene& scene, const System<D>& sys, const std::strin
   }
   if (scene.output.events) {
     log = std::make_unique<EventLogWriter<D>>(out + "/events.bin", sys.size() + inlet_slots(sys.inlets, scene.end_time),
-                                              sys.fixed.empty() ? kEventLogVersion : kEventLogVersionFixed);
+                                              !sys.fixed.empty());
     observers.push_back(log.get());
   }
   std::unique_ptr<VtkSnapshotWriter<D>> vtk;

@@ -26,6 +26,7 @@
 #include "io/output.hpp"
 #include "io/scene.hpp"
 #include "tests/support/cli.hpp"
+#include "tests/support/event_log.hpp"
 #include "tests/support/impact_reference.hpp"
 #include "tests/support/systems.hpp"
 
@@ -574,8 +575,8 @@ TEST(FixedGrains, SceneFlagsTheGroupAndDropsAFilesVelocities) {
   EXPECT_EQ(fsys.x[0], Vec<3>(0.005, 0.005, 0.001));
 }
 
-// A rough gas falling on a fixed base: every collision of the event log (version 2, pair records
-// with a fixed partner have mj = infinity) passes `matep log verify` against the scene, `matep check`
+// A rough gas falling on a fixed base: every collision of the event log (its header flags fixed
+// grains; pair records with a fixed partner have mj = infinity) passes `matep log verify` against the scene, `matep check`
 // reports the fixed grains, and the base has not moved in final_state.csv.
 TEST(FixedGrains, CliCheckRunAndVerifyARoughBedOnAFixedBase) {
   const auto path = write_scene("fixed_bed", kBedScene);
@@ -588,15 +589,19 @@ TEST(FixedGrains, CliCheckRunAndVerifyARoughBedOnAFixedBase) {
   const std::string log = (out / "events.bin").string();
   const test::CliResult stats = test::run_cli("log stats " + log);
   ASSERT_EQ(stats.code, 0) << stats.out;
-  EXPECT_NE(stats.out.find("version 2"), std::string::npos) << stats.out;
+  EXPECT_NE(stats.out.find("version 3 (fixed grains)"), std::string::npos) << stats.out;
   const test::CliResult ver = test::run_cli("log verify " + log + " --scene " + path.string());
   EXPECT_EQ(ver.code, 0) << ver.out;
   // The first record with a fixed partner; a copy with a moving fixed partner (vj_after, bytes
-  // 144.. of the record, README "events.bin") fails, and so does the log read as version 1, where
-  // an infinite mass is not allowed.
+  // 144.. of the record, README "events.bin"; checksums resealed) fails, and the log without the
+  // header's fixed-grain flag, where an infinite mass is not allowed, is refused naming the field.
   std::uint64_t first = 0;
+  EventLogHeader header;
   {
     EventLogReader reader(log);
+    header = reader.header();
+    EXPECT_EQ(header.version, kEventLogVersionChecked);
+    EXPECT_TRUE(header.fixed_grains());
     EventRecord r;
     bool found = false;
     for (std::uint64_t k = 0; !found && reader.next(r); ++k)
@@ -613,20 +618,25 @@ TEST(FixedGrains, CliCheckRunAndVerifyARoughBedOnAFixedBase) {
     std::fstream f(copy, std::ios::in | std::ios::out | std::ios::binary);
     f.seekp(static_cast<std::streamoff>(offset));
     f.write(bytes.data(), static_cast<std::streamsize>(bytes.size()));
+    f.close();
+    test::reseal_event_log(copy);
     return copy;
   };
   const double moved = 1e-3;
   std::string moved_bytes(8, '\0');
   std::memcpy(moved_bytes.data(), &moved, 8);
   const test::CliResult bad_v =
-      test::run_cli("log verify " + altered("moving.bin", record_offset(first) + 144, moved_bytes));
+      test::run_cli("log verify " + altered("moving.bin", record_offset(header, first) + 144, moved_bytes));
   EXPECT_EQ(bad_v.code, 1) << bad_v.out;
   EXPECT_NE(bad_v.out.find("fixed partner"), std::string::npos) << bad_v.out;
-  const std::uint32_t v1 = kEventLogVersion;
+  const std::uint32_t no_flags = 0;
   const test::CliResult bad_h =
-      test::run_cli("log verify " + altered("v1.bin", 8, std::string(reinterpret_cast<const char*>(&v1), 4)));
-  EXPECT_EQ(bad_h.code, 1) << bad_h.out;
-  EXPECT_NE(bad_h.out.find("finite values"), std::string::npos) << bad_h.out;
+      test::run_cli("log verify " + altered("noflag.bin", 20, std::string(reinterpret_cast<const char*>(&no_flags), 4)));
+  EXPECT_EQ(bad_h.code, 2) << bad_h.out;
+  EXPECT_NE(bad_h.out.find("corrupt event record " + std::to_string(first) + " at byte offset " +
+                           std::to_string(record_offset(header, first)) + ": mj = inf"),
+            std::string::npos)
+      << bad_h.out;
   // The base's rows of final_state.csv: the lattice sites at rest.
   const Scene sc = load_scene_string(kBedScene, "bed.toml", ".");
   const auto& sys = std::get<System<3>>(sc.system);

@@ -208,17 +208,21 @@ TEST(Cli, TruncatedEventLogIsReportedWithItsByteOffset) {
   const fs::path log = d / "events.bin";
   const auto size = fs::file_size(log);
   ASSERT_GT(size, matep::kEventLogHeaderSize + 2 * matep::kEventRecordSize);
+  const matep::EventLogHeader h = matep::EventLogReader(log.string()).header();
+  EXPECT_EQ(h.version, matep::kEventLogVersionChecked);
   fs::resize_file(log, size - 10);
-  matep::EventLogReader reader(log.string());
-  matep::EventRecord rec;
   try {
+    matep::EventLogReader reader(log.string());  // the size does not fit the layout
+    matep::EventRecord rec;
     while (reader.next(rec)) {
     }
     FAIL() << "truncation not detected";
   } catch (const matep::IoError& e) {
     const std::string msg = e.what();
-    // The last record started one record length before the original end of the file.
-    EXPECT_NE(msg.find("truncated event record at byte offset " + std::to_string(size - matep::kEventRecordSize)),
+    // The cut is in the last block, whose checksum record ended the file.
+    const std::uint64_t block = h.block_records * matep::kEventRecordSize + matep::kEventBlockTrailerSize;
+    const std::uint64_t last = matep::kEventLogHeaderSize + (size - 10 - matep::kEventLogHeaderSize) / block * block;
+    EXPECT_NE(msg.find(log.string() + ": truncated event log: the last block, at byte offset " + std::to_string(last)),
               std::string::npos)
         << msg;
   }

@@ -3,8 +3,10 @@
 // shipped case and on a corrupted copy, bad logs with exit status 2, and streaming (the peak RSS of
 // `matep log stats` does not grow with the number of records).
 #include <fmt/format.h>
+#include <fcntl.h>
 #include <gtest/gtest.h>
 #include <sys/resource.h>
+#include <sys/stat.h>
 #include <sys/wait.h>
 #include <unistd.h>
 
@@ -16,6 +18,7 @@
 #include <filesystem>
 #include <fstream>
 #include <functional>
+#include <limits>
 #include <random>
 #include <sstream>
 #include <string>
@@ -26,6 +29,7 @@
 #include "io/output.hpp"
 #include "io/scene.hpp"
 #include "tests/support/cli.hpp"
+#include "tests/support/event_log.hpp"
 
 namespace fs = std::filesystem;
 
@@ -80,14 +84,14 @@ std::size_t count_lines(const std::string& s) { return static_cast<std::size_t>(
 // collision), times increasing, `particles` particles.
 class SyntheticLog {
  public:
-  SyntheticLog(const fs::path& path, std::uint64_t particles) : particles_(particles) {
+  SyntheticLog(const fs::path& path, std::uint64_t particles, std::uint32_t version = matep::kEventLogVersion)
+      : particles_(particles) {
     f_ = std::fopen(path.c_str(), "wb");
     buf_.resize(1 << 20);
     std::setvbuf(f_, buf_.data(), _IOFBF, buf_.size());
     unsigned char h[matep::kEventLogHeaderSize] = {};
     std::memcpy(h, matep::kEventLogMagic, 8);
-    const std::uint32_t version = matep::kEventLogVersion, dim = 3,
-                        size = static_cast<std::uint32_t>(matep::kEventRecordSize);
+    const std::uint32_t dim = 3, size = static_cast<std::uint32_t>(matep::kEventRecordSize);
     std::memcpy(h + 8, &version, 4);
     std::memcpy(h + 12, &dim, 4);
     std::memcpy(h + 16, &size, 4);
@@ -308,9 +312,10 @@ TEST_F(LogTools, FilterWritesExactlyTheMatchingRecords) {
       {ft + " --kind pair --ids " + idlist,
        [&](const matep::EventRecord& r) { return r.time >= from && r.time <= to && r.kind == 1 && in_ids(r); }},
   };
-  const std::string header = slurp(log).substr(0, matep::kEventLogHeaderSize);
+  const std::string input = slurp(log);
+  const matep::EventLogHeader in_header = matep::inspect_log(log.string()).header;
   for (const auto& c : cases) {
-    std::string expected = header;
+    std::string expected;
     std::size_t n = 0;
     for (const auto& r : recs)
       if (c.keep(r)) {
@@ -320,7 +325,15 @@ TEST_F(LogTools, FilterWritesExactlyTheMatchingRecords) {
     const fs::path out = dir() / "filtered.bin";
     const Result res = sh("log filter " + log.string() + " --out " + out.string() + " " + c.args);
     ASSERT_EQ(res.code, 0) << c.args << "\n" << res.out;
-    EXPECT_EQ(slurp(out), expected) << c.args;
+    // A version-3 log with the input's dimension and particle count, holding exactly these records.
+    const matep::LogFile lf = matep::inspect_log(out.string());
+    EXPECT_EQ(lf.header.version, matep::kEventLogVersionChecked);
+    EXPECT_EQ(lf.header.dimension, in_header.dimension);
+    EXPECT_EQ(lf.header.particles, in_header.particles);
+    EXPECT_EQ(lf.records, n);
+    std::string got;
+    for (const auto& r : read_all(out)) got += encode(r);
+    EXPECT_EQ(got, expected) << c.args;
     EXPECT_NE(res.out.find(std::to_string(n) + " of " + std::to_string(recs.size())), std::string::npos) << res.out;
     // The same selection as CSV (by --csv and by the .csv extension).
     const fs::path csv = dir() / "filtered.csv";
@@ -353,7 +366,7 @@ TEST_F(LogTools, FilterWritesExactlyTheMatchingRecords) {
     EXPECT_EQ(count_lines(r.out), 1u) << r.out;
     EXPECT_FALSE(fs::exists(none));
   }
-  EXPECT_EQ(slurp(log).size(), matep::record_offset(recs.size()));  // the input is untouched
+  EXPECT_EQ(slurp(log), input);  // the input is untouched
 }
 
 TEST_F(LogTools, ExportHasOneRowPerRecord) {
@@ -470,9 +483,10 @@ TEST_F(LogTools, VerifyFailsOnAnAlteredRecordAndNamesIt) {
   const std::uint64_t k = n / 2;
   const fs::path bad = dir() / "altered.bin";
   fs::copy_file(good, bad, fs::copy_options::overwrite_existing);
-  const std::uint64_t off = matep::record_offset(k);
+  const std::uint64_t off = matep::record_offset(matep::inspect_log(good.string()).header, k);
   const double v = peek_double(bad, off + kOffViAfter);
   poke_double(bad, off + kOffViAfter, v + 1e-6 * (std::abs(v) + 1.0));
+  matep::test::reseal_event_log(bad);  // past the checksums, to the physics
 
   const Result r = sh("log verify " + bad.string());
   EXPECT_EQ(r.code, 1) << r.out;
@@ -488,9 +502,15 @@ TEST_F(LogTools, VerifyFailsOnAnAlteredRecordAndNamesIt) {
   EXPECT_EQ(res.records, k + 1);  // stopped at the first violation
   // The untouched log passes.
   EXPECT_TRUE(matep::verify_log(good.string(), nullptr, 1e-9).ok);
-  // A NaN is a violation too, not a silent pass.
+  // A NaN is refused by the reader (bad input, exit 2), naming the record, its offset and the field.
   poke_double(bad, off + kOffViAfter, std::nan(""));
-  EXPECT_EQ(matep::verify_log(bad.string(), nullptr, 1e-9).check, "finite values");
+  matep::test::reseal_event_log(bad);
+  const Result nan = sh("log verify " + bad.string());
+  EXPECT_EQ(nan.code, 2) << nan.out;
+  EXPECT_NE(nan.out.find("corrupt event record " + std::to_string(k) + " at byte offset " + std::to_string(off) +
+                         ": vi_after.x = nan"),
+            std::string::npos)
+      << nan.out;
 }
 
 TEST_F(LogTools, BadLogsGiveExitStatus2AndTheByteOffset) {
@@ -499,7 +519,9 @@ TEST_F(LogTools, BadLogsGiveExitStatus2AndTheByteOffset) {
   const fs::path t = dir() / "truncated.bin";
   fs::copy_file(good, t, fs::copy_options::overwrite_existing);
   fs::resize_file(t, size - 10);
-  const std::string where = "byte offset " + std::to_string(size - matep::kEventRecordSize);
+  // The cut falls in the last block (its checksum record is the file's last 32 bytes).
+  const matep::LogFile glf = matep::inspect_log(good.string());
+  const std::string where = "the last block, at byte offset " + std::to_string(matep::block_offset(glf.header, glf.records));
   for (const std::string& cmd : std::vector<std::string>{"stats", "verify", "export", "filter"}) {
     const fs::path out = dir() / "from_truncated.bin";
     const Result r = sh("log " + cmd + " " + t.string() + (cmd == "filter" ? " --out " + out.string() : ""));
@@ -512,17 +534,21 @@ TEST_F(LogTools, BadLogsGiveExitStatus2AndTheByteOffset) {
     }
     EXPECT_FALSE(fs::exists(out));  // nothing half-written
   }
-  // Unknown kind in a record, bad magic, wrong version, a header cut short.
+  // Unknown kind in a record (checksums resealed), bad magic, wrong version, a header cut short.
   const fs::path k = dir() / "kind.bin";
   fs::copy_file(good, k, fs::copy_options::overwrite_existing);
   {
     std::fstream f(k, std::ios::in | std::ios::out | std::ios::binary);
-    f.seekp(static_cast<std::streamoff>(matep::record_offset(3) + 8));
+    f.seekp(static_cast<std::streamoff>(matep::record_offset(glf.header, 3) + 8));
     f.put(9);
   }
+  matep::test::reseal_event_log(k);
   const Result rk = sh("log stats " + k.string());
   EXPECT_EQ(rk.code, 2);
-  EXPECT_NE(rk.out.find("byte offset " + std::to_string(matep::record_offset(3))), std::string::npos) << rk.out;
+  EXPECT_NE(rk.out.find("corrupt event record 3 at byte offset " + std::to_string(matep::record_offset(glf.header, 3)) +
+                        ": kind 9"),
+            std::string::npos)
+      << rk.out;
   const fs::path m = dir() / "magic.bin";
   fs::copy_file(good, m, fs::copy_options::overwrite_existing);
   {
@@ -540,8 +566,8 @@ TEST_F(LogTools, BadLogsGiveExitStatus2AndTheByteOffset) {
   const Result rh = sh("log export " + h.string());
   EXPECT_EQ(rh.code, 2);
   EXPECT_NE(rh.out.find("byte offset"), std::string::npos) << rh.out;
-  // A record naming a particle beyond the header's count: stats cannot count it (exit 2), verify
-  // reports the record (exit 1).
+  // A record naming a particle beyond the header's count is corrupt: every tool refuses it (exit 2),
+  // naming the record and its byte offset.
   const fs::path idx = dir() / "index.bin";
   {
     SyntheticLog s(idx, 10);
@@ -550,14 +576,13 @@ TEST_F(LogTools, BadLogsGiveExitStatus2AndTheByteOffset) {
     r.i = 50;
     s.write(r);
   }
-  const Result si = sh("log stats " + idx.string());
-  EXPECT_EQ(si.code, 2) << si.out;
-  EXPECT_NE(si.out.find("byte offset " + std::to_string(matep::record_offset(5))), std::string::npos) << si.out;
-  const Result vi = sh("log verify " + idx.string());
-  EXPECT_EQ(vi.code, 1) << vi.out;
-  EXPECT_NE(vi.out.find("record 5 at byte offset " + std::to_string(matep::record_offset(5))), std::string::npos)
-      << vi.out;
-  EXPECT_NE(vi.out.find("particle index"), std::string::npos) << vi.out;
+  const std::string at5 = "corrupt event record 5 at byte offset " +
+                          std::to_string(matep::record_offset(matep::test::v1_header(), 5)) + ": i = 50";
+  for (const std::string cmd : {"stats", "verify", "export"}) {
+    const Result si = sh("log " + cmd + " " + idx.string());
+    EXPECT_EQ(si.code, 2) << si.out;
+    EXPECT_NE(si.out.find(at5), std::string::npos) << si.out;
+  }
   const Result missing = sh("log stats " + (dir() / "missing.bin").string());
   EXPECT_EQ(missing.code, 2);
   EXPECT_EQ(sh("log").code, 2);
@@ -576,7 +601,7 @@ TEST(LogStreaming, PeakMemoryDoesNotGrowWithTheLog) {
     SyntheticLog b(d / "big.bin", 1000);
     b.write_many(big_n);
   }
-  ASSERT_EQ(fs::file_size(d / "big.bin"), matep::record_offset(big_n));
+  ASSERT_EQ(fs::file_size(d / "big.bin"), matep::record_offset(matep::test::v1_header(), big_n));
   // A forked child starts with the test process's anonymous pages mapped until it execs, so
   // ru_maxrss has that floor; `matep --version` shows it. Both stats runs share it.
   const auto [code_f, rss_f] = run_measured({"--version"}, d / "version.txt");
@@ -627,12 +652,13 @@ TEST_F(LogTools, VerifyRoughLogAndAlteredSpin) {
   }
   constexpr std::uint64_t kOffWiAfter = 216;  // wi_after.x within a record (io/output.cpp)
   const std::uint64_t k = n / 2;
-  const std::uint64_t off = matep::record_offset(k);
+  const std::uint64_t off = matep::record_offset(matep::inspect_log(good.string()).header, k);
   for (const int c : {0, 1, 2}) {
     const fs::path bad = d / "altered.bin";
     fs::copy_file(good, bad, fs::copy_options::overwrite_existing);
     const double w = peek_double(bad, off + kOffWiAfter + 8 * c);
     poke_double(bad, off + kOffWiAfter + 8 * c, w + 1e-6 * (std::abs(w) + 1.0));
+    matep::test::reseal_event_log(bad);
     const Result r = sh("log verify " + bad.string() + " --scene " + scene);
     EXPECT_EQ(r.code, 1) << r.out;
     EXPECT_NE(r.out.find("record " + std::to_string(k) + " at byte offset " + std::to_string(off)), std::string::npos)
@@ -652,3 +678,4 @@ TEST_F(LogTools, VerifyRoughLogAndAlteredSpin) {
   EXPECT_FALSE(wrong.ok);
   EXPECT_EQ(wrong.check, "tangential restitution") << wrong.message;
 }
+

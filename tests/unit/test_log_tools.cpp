@@ -679,3 +679,465 @@ TEST_F(LogTools, VerifyRoughLogAndAlteredSpin) {
   EXPECT_EQ(wrong.check, "tangential restitution") << wrong.message;
 }
 
+// ---- issue 17: tools that never destroy, readers that check everything -----------------------
+
+namespace {
+
+// The names in a folder, sorted (to see that no temporary file is left behind).
+std::vector<std::string> names_in(const fs::path& d) {
+  std::vector<std::string> v;
+  for (const auto& e : fs::directory_iterator(d)) v.push_back(e.path().filename().string());
+  std::sort(v.begin(), v.end());
+  return v;
+}
+
+// A copy of `from` with the byte at `offset` XOR-ed with `mask` (checksums left as they were).
+void flip_copy(const fs::path& from, const fs::path& to, std::uint64_t offset, unsigned char mask) {
+  fs::copy_file(from, to, fs::copy_options::overwrite_existing);
+  std::fstream f(to, std::ios::in | std::ios::out | std::ios::binary);
+  f.seekg(static_cast<std::streamoff>(offset));
+  const int c = f.get();
+  f.seekp(static_cast<std::streamoff>(offset));
+  f.put(static_cast<char>(c ^ mask));
+}
+
+void write_text(const fs::path& p, const std::string& text) {
+  std::ofstream f(p, std::ios::binary | std::ios::trunc);
+  f << text;
+}
+
+// A valid smooth collision of particle 1 with a partner at rest that is fixed (mj = +infinity,
+// versions 2 and 3): the reflection off a plane with normal n.
+matep::EventRecord fixed_partner_record(double t) {
+  matep::EventRecord r;
+  r.time = t;
+  r.kind = 1;
+  r.i = 1;
+  r.j = 0;
+  r.mi = 2.0;
+  r.mj = std::numeric_limits<double>::infinity();
+  r.e = 0.8;
+  const double n[3] = {0.6, 0.0, 0.8}, v[3] = {-1.0, 0.5, -2.0};
+  const double un = v[0] * n[0] + v[1] * n[1] + v[2] * n[2];
+  for (int c = 0; c < 3; ++c) {
+    r.normal[c] = n[c];
+    r.vi_before[c] = v[c];
+    r.vi_after[c] = v[c] - (1.0 + r.e) * un * n[c];
+  }
+  return r;
+}
+
+}  // namespace
+
+// A failed filter or export (a corrupt block after a good one: output already started) leaves the
+// file that was at --out as it was, and leaves no temporary behind; a successful one replaces it
+// and keeps its permissions.
+TEST_F(LogTools, FailedFilterOrExportKeepsTheExistingOutput) {
+  const fs::path good = gas() / "events.bin";
+  const matep::LogFile lf = matep::inspect_log(good.string());
+  const std::uint32_t k = lf.header.block_records;
+  ASSERT_GT(lf.records, std::uint64_t{2} * k);
+  const fs::path d = dir() / "keep";
+  fs::create_directories(d);
+  const fs::path bad = d / "bad.bin";
+  flip_copy(good, bad, matep::record_offset(lf.header, k + 5) + kOffViAfter + 3, 0x40);
+  const std::string where = "corrupt block at byte offset " + std::to_string(matep::block_offset(lf.header, k));
+  const std::string precious = "an earlier result that must survive\n";
+  for (const std::string cmd : {"filter", "filter --csv", "export"}) {
+    const fs::path out = d / "result.out";
+    write_text(out, precious);
+    fs::permissions(out, fs::perms::owner_read | fs::perms::owner_write | fs::perms::group_read);
+    const Result r = sh("log " + cmd + " " + bad.string() + " --out " + out.string());
+    EXPECT_EQ(r.code, 2) << cmd << ": " << r.out;
+    EXPECT_EQ(count_lines(r.out), 1u) << r.out;
+    EXPECT_NE(r.out.find(bad.string() + ": " + where), std::string::npos) << r.out;
+    EXPECT_EQ(slurp(out), precious) << cmd;
+    EXPECT_EQ(names_in(d), (std::vector<std::string>{"bad.bin", "result.out"})) << cmd;
+    // The same from the good log replaces the file (permissions kept).
+    const Result ok = sh("log " + cmd + " " + good.string() + " --out " + out.string());
+    ASSERT_EQ(ok.code, 0) << cmd << ": " << ok.out;
+    EXPECT_NE(slurp(out), precious);
+    if (cmd == "filter") {
+      EXPECT_EQ(matep::inspect_log(out.string()).records, lf.records);
+    }
+    EXPECT_EQ(fs::status(out).permissions(), fs::perms::owner_read | fs::perms::owner_write | fs::perms::group_read);
+    EXPECT_EQ(names_in(d), (std::vector<std::string>{"bad.bin", "result.out"})) << cmd;
+    fs::remove(out);
+  }
+  // A folder that does not exist: one line, nothing created.
+  const Result nodir = sh("log filter " + good.string() + " --out " + (d / "no" / "x.bin").string());
+  EXPECT_EQ(nodir.code, 2) << nodir.out;
+  EXPECT_NE(nodir.out.find("cannot create a temporary file in " + (d / "no").string()), std::string::npos) << nodir.out;
+  EXPECT_FALSE(fs::exists(d / "no"));
+}
+
+// --out that is a FIFO, a device, a directory, or the input itself (the same path, another path to
+// it, a hard link, a symbolic link) is refused with one line before anything is written.
+TEST_F(LogTools, OutputThatIsNotARegularFileOrIsTheInputIsRefused) {
+  const fs::path d = dir() / "refuse";
+  fs::create_directories(d);
+  const fs::path log = d / "events.bin";
+  fs::copy_file(gas() / "events.bin", log, fs::copy_options::overwrite_existing);
+  const std::string input = slurp(log);
+  const fs::path fifo = d / "fifo", sub = d / "folder", hard = d / "hard.bin", soft = d / "soft.bin";
+  ASSERT_EQ(::mkfifo(fifo.c_str(), 0600), 0);
+  fs::create_directories(sub);
+  write_text(sub / "inside.txt", "x");
+  fs::create_hard_link(log, hard);
+  fs::create_symlink(log, soft);
+  const std::vector<std::string> before = names_in(d);
+  // Hold the FIFO's read end open: a tool that wrote to it would not block, and its bytes would show.
+  const int rd = ::open(fifo.c_str(), O_RDONLY | O_NONBLOCK);
+  ASSERT_GE(rd, 0);
+  struct Case {
+    std::string out, says;
+  };
+  const std::vector<Case> cases = {
+      {fifo.string(), "is a FIFO, not a regular file"},
+      {"/dev/null", "is a character device, not a regular file"},
+      {sub.string(), "is a directory, not a regular file"},
+      {log.string(), "is the input log"},
+      {(sub / ".." / "events.bin").string(), "is the input log"},
+      {hard.string(), "is the input log"},
+      {soft.string(), "is the input log"},
+  };
+  for (const auto& c : cases)
+    for (const std::string cmd : {"filter", "filter --csv", "export"}) {
+      const Result r = sh("log " + cmd + " " + log.string() + " --out " + c.out);
+      EXPECT_EQ(r.code, 2) << cmd << " --out " << c.out << ": " << r.out;
+      EXPECT_EQ(count_lines(r.out), 1u) << r.out;
+      EXPECT_NE(r.out.find(c.out + ": " + c.says), std::string::npos) << r.out;
+    }
+  char byte;
+  EXPECT_LE(::read(rd, &byte, 1), 0) << "something was written to the FIFO";
+  ::close(rd);
+  struct stat st {};
+  ASSERT_EQ(::lstat(fifo.c_str(), &st), 0);
+  EXPECT_TRUE(S_ISFIFO(st.st_mode));
+  ASSERT_EQ(::stat("/dev/null", &st), 0);
+  EXPECT_TRUE(S_ISCHR(st.st_mode));
+  EXPECT_EQ(slurp(sub / "inside.txt"), "x");
+  EXPECT_EQ(slurp(log), input);
+  EXPECT_TRUE(fs::is_symlink(soft));
+  EXPECT_EQ(names_in(d), before);
+}
+
+// The header's particle count sizes nothing: a flipped byte that makes it 3e9 (the old reader
+// allocated 24 GB for it) costs no memory, and a count no 32-bit id can reach is refused at once.
+// In a version-3 log the header checksum catches the flip.
+TEST(LogToolsLimits, TheHeaderParticleCountSizesNothing) {
+  const fs::path d = tmpdir("count");
+  {
+    SyntheticLog s(d / "log.bin", 10);
+    s.write_many(2000);
+  }
+  auto set_count = [&](const std::string& name, std::uint64_t count) {
+    fs::copy_file(d / "log.bin", d / name, fs::copy_options::overwrite_existing);
+    std::fstream f(d / name, std::ios::in | std::ios::out | std::ios::binary);
+    f.seekp(24);
+    f.write(reinterpret_cast<const char*>(&count), 8);
+    return (d / name).string();
+  };
+  const std::string big = set_count("big.bin", 3000000000ull), huge = set_count("huge.bin", std::uint64_t{1} << 40);
+  const auto [code_f, rss_f] = run_measured({"--version"}, d / "version.txt");
+  ASSERT_EQ(code_f, 0);
+  const auto [code_n, rss_n] = run_measured({"log", "stats", (d / "log.bin").string()}, d / "normal.txt");
+  const auto [code_b, rss_b] = run_measured({"log", "stats", big}, d / "big.txt");
+  ASSERT_EQ(code_n, 0) << slurp(d / "normal.txt");
+  ASSERT_EQ(code_b, 0) << slurp(d / "big.txt");
+  EXPECT_NE(slurp(d / "big.txt").find("10 of 3000000000"), std::string::npos) << slurp(d / "big.txt");
+  std::printf("peak RSS of matep log stats: %ld KiB (header: 10 particles), %ld KiB (header: 3e9); --version %ld KiB\n",
+              rss_n, rss_b, rss_f);
+  EXPECT_LT(std::abs(rss_b - rss_n), 8 * 1024) << "stats sized memory from the header's count";
+  const Result h = sh("log stats " + huge);
+  EXPECT_EQ(h.code, 2) << h.out;
+  EXPECT_NE(h.out.find(huge + ": corrupt event log header: particle count 1099511627776 at byte offset 24"),
+            std::string::npos)
+      << h.out;
+  // Version 3: the flip breaks the header's checksum.
+  const fs::path run = d / "run";
+  ASSERT_EQ(sh("run " + kCases + "elastic_gas.toml --set run.end_time=0.02 --quiet --out " + run.string()).code, 0);
+  flip_copy(run / "events.bin", d / "v3.bin", 28, 0x08);
+  for (const std::string cmd : {"stats", "verify", "export"}) {
+    const Result r = sh("log " + cmd + " " + (d / "v3.bin").string());
+    EXPECT_EQ(r.code, 2) << r.out;
+    EXPECT_NE(r.out.find("corrupt event log header: checksum at byte offset 60"), std::string::npos) << r.out;
+  }
+  fs::remove_all(d);
+}
+
+// Velocities of 1e200: |v|^2 overflows, and the relative comparisons against an infinite scale
+// used to pass. Such a record now fails the "range" check; a consistent collision at 1e100 (every
+// scale finite) still passes.
+TEST(LogToolsVerify, OverflowingVelocitiesFailInsteadOfPassing) {
+  const fs::path d = tmpdir("overflow");
+  matep::EventRecord base;
+  {
+    SyntheticLog s(d / "ok.bin", 10);
+    base = s.next();
+    s.write(base);
+  }
+  auto one = [&](const std::string& name, const matep::EventRecord& r) {
+    SyntheticLog s(d / name, 10);
+    s.write(base);
+    s.write(r);
+    return (d / name).string();
+  };
+  // A wall collision whose tangential velocity (1e200) vanishes: momentum, tangential velocity and
+  // energy are all violated, each relative to an infinite scale.
+  matep::EventRecord w;
+  w.time = base.time + 1.0;
+  w.kind = 2;
+  w.i = 3;
+  w.mi = 1.0;
+  w.e = 0.9;
+  w.normal[2] = 1.0;
+  w.vi_before[0] = w.vi_before[1] = 1e200;
+  w.vi_before[2] = -1.0;
+  w.vi_after[2] = 0.9;
+  // The valid base collision with every velocity scaled.
+  auto scaled = [&](double f) {
+    matep::EventRecord r = base;
+    r.time = base.time + 1.0;
+    for (double* v : {r.vi_before, r.vj_before, r.vi_after, r.vj_after})
+      for (int c = 0; c < 3; ++c) v[c] *= f;
+    return r;
+  };
+  const std::string tangential = one("tangential.bin", w), big = one("big.bin", scaled(1e200)),
+                    fine = one("fine.bin", scaled(1e100));
+  const std::string at1 =
+      "record 1 at byte offset " + std::to_string(matep::record_offset(matep::test::v1_header(), 1));
+  for (const std::string& log : {tangential, big}) {
+    const Result r = sh("log verify " + log);
+    EXPECT_EQ(r.code, 1) << r.out;
+    EXPECT_NE(r.out.find(at1), std::string::npos) << r.out;
+    EXPECT_NE(r.out.find("fails the range check"), std::string::npos) << r.out;
+    const matep::VerifyResult v = matep::verify_log(log, nullptr, 1e-9);
+    EXPECT_FALSE(v.ok);
+    EXPECT_EQ(v.index, 1u);
+    EXPECT_EQ(v.check, "range");
+  }
+  const Result ok = sh("log verify " + fine);
+  EXPECT_EQ(ok.code, 0) << ok.out;
+  fs::remove_all(d);
+}
+
+// Every record is checked when read, by every tool: an unknown kind, a non-finite field, a mass
+// that is not positive, an infinite mj outside a log with fixed grains. The message names the
+// file, the record's byte offset and the field.
+TEST(LogToolsRecords, EveryToolRefusesARecordThatFailsItsChecks) {
+  const fs::path d = tmpdir("records");
+  struct Case {
+    std::string name, says;
+    std::function<void(matep::EventRecord&)> spoil;
+  };
+  const std::vector<Case> cases = {
+      {"kind0", "kind 0 (known kinds are 1 to 7)", [](matep::EventRecord& r) { r.kind = 0; }},
+      {"kind8", "kind 8 (known kinds are 1 to 7)", [](matep::EventRecord& r) { r.kind = 8; }},
+      {"kind255", "kind 255 (known kinds are 1 to 7)", [](matep::EventRecord& r) { r.kind = 255; }},
+      {"time", "time = inf", [](matep::EventRecord& r) { r.time = std::numeric_limits<double>::infinity(); }},
+      {"normal", "normal.y = nan", [](matep::EventRecord& r) { r.normal[1] = std::nan(""); }},
+      {"spin", "wj_after.z = -inf", [](matep::EventRecord& r) { r.wj_after[2] = -std::numeric_limits<double>::infinity(); }},
+      {"mass", "mi = 0 (a mass must be > 0)", [](matep::EventRecord& r) { r.mi = 0.0; }},
+      {"mj", "mj = -1 (a mass must be > 0)", [](matep::EventRecord& r) { r.kind = 1; r.mj = -1.0; }},
+      {"fixed", "mj = inf", [](matep::EventRecord& r) { r.kind = 1; r.mj = std::numeric_limits<double>::infinity(); }},
+      {"switch", "mi = -2 (a mass must be > 0)", [](matep::EventRecord& r) { r.kind = 4; r.mi = -2.0; }},
+      {"inflow", "mj = 0 (an inflow's radius must be > 0)", [](matep::EventRecord& r) { r.kind = 7; r.mj = 0.0; }},
+  };
+  const std::string at3 = "corrupt event record 3 at byte offset " +
+                          std::to_string(matep::record_offset(matep::test::v1_header(), 3)) + ": ";
+  for (const auto& c : cases) {
+    const fs::path log = d / (c.name + ".bin");
+    {
+      SyntheticLog s(log, 10);
+      s.write_many(3);
+      matep::EventRecord r = s.next();
+      c.spoil(r);
+      s.write(r);
+      s.write_many(3);
+    }
+    for (const std::string cmd : {"stats", "verify", "export", "filter"}) {
+      const fs::path out = d / "out.bin";
+      const Result r = sh("log " + cmd + " " + log.string() + (cmd == "filter" ? " --out " + out.string() : ""));
+      EXPECT_EQ(r.code, 2) << c.name << " " << cmd << ": " << r.out;
+      EXPECT_NE(r.out.find(log.string() + ": " + at3 + c.says), std::string::npos) << c.name << " " << cmd << ": " << r.out;
+      EXPECT_FALSE(fs::exists(out));
+    }
+  }
+  fs::remove_all(d);
+}
+
+// A flipped byte in a float field of a version-3 log: one ulp of a velocity, which no physics check
+// can see, is caught by its block's checksum; every tool reports that block by byte offset, and
+// the records before it were read. The same with the flip resealed passes verify (so it was the
+// checksum that saw it); a flip in a checksum record and a log cut at a block boundary are caught.
+TEST_F(LogTools, AFlippedByteIsCaughtByItsBlockChecksum) {
+  const fs::path good = gas() / "events.bin";
+  const matep::LogFile lf = matep::inspect_log(good.string());
+  const matep::EventLogHeader& h = lf.header;
+  ASSERT_EQ(h.version, matep::kEventLogVersionChecked);
+  const std::uint32_t k = h.block_records;
+  ASSERT_EQ(k, matep::kEventLogBlockRecords);
+  ASSERT_GT(lf.records, std::uint64_t{2} * k + 1);
+  const std::uint64_t rec = k + k / 2;  // in the second block
+  const fs::path d = dir() / "flip";
+  fs::create_directories(d);
+  const fs::path bad = d / "flipped.bin";
+  flip_copy(good, bad, matep::record_offset(h, rec) + kOffViAfter + 8, 0x01);  // vi_after.y, lowest byte
+  EXPECT_NE(peek_double(bad, matep::record_offset(h, rec) + kOffViAfter + 8),
+            peek_double(good, matep::record_offset(h, rec) + kOffViAfter + 8));
+  const std::string says = bad.string() + ": corrupt block at byte offset " + std::to_string(matep::block_offset(h, rec)) +
+                           " (records " + std::to_string(k) + " to " + std::to_string(2 * k - 1) + "): checksum";
+  for (const std::string cmd : {"stats", "verify", "export", "filter"}) {
+    const fs::path out = d / "out.bin";
+    const Result r = sh("log " + cmd + " " + bad.string() + (cmd == "filter" ? " --out " + out.string() : ""));
+    EXPECT_EQ(r.code, 2) << cmd << ": " << r.out;
+    EXPECT_NE(r.out.find(says), std::string::npos) << cmd << ": " << r.out;
+    EXPECT_FALSE(fs::exists(out));
+  }
+  {
+    matep::EventLogReader reader(bad.string());
+    matep::EventRecord r;
+    std::uint64_t n = 0;
+    try {
+      while (reader.next(r)) ++n;
+      ADD_FAILURE() << "the flip was not seen";
+    } catch (const matep::IoError& e) {
+      EXPECT_NE(std::string(e.what()).find(says), std::string::npos) << e.what();
+    }
+    EXPECT_EQ(n, k);  // the first block, whole
+    EXPECT_THROW(reader.record_at(rec), matep::IoError);
+    EXPECT_EQ(reader.record_at(k - 1).time, matep::EventLogReader(good.string()).record_at(k - 1).time);
+  }
+  matep::test::reseal_event_log(bad);
+  EXPECT_TRUE(matep::verify_log(bad.string(), nullptr, 1e-9).ok);
+  // A flip in the first block's checksum record, then the log cut after its last full block.
+  const std::uint64_t trailer = matep::record_offset(h, k - 1) + matep::kEventRecordSize;
+  flip_copy(good, bad, trailer + 26, 0x80);
+  const Result t = sh("log verify " + bad.string());
+  EXPECT_EQ(t.code, 2) << t.out;
+  EXPECT_NE(t.out.find("corrupt block at byte offset 64 (records 0 to " + std::to_string(k - 1) + ")"), std::string::npos)
+      << t.out;
+  fs::copy_file(good, bad, fs::copy_options::overwrite_existing);
+  const std::uint64_t cut = matep::block_offset(h, lf.records);  // the last block's start: whole blocks remain
+  fs::resize_file(bad, cut);
+  const Result c = sh("log stats " + bad.string());
+  EXPECT_EQ(c.code, 2) << c.out;
+  EXPECT_NE(c.out.find("truncated event log: the last block, at byte offset " + std::to_string(cut) + ", has 0 bytes"),
+            std::string::npos)
+      << c.out;
+}
+
+// CRC-32C: the standard check value, the table-driven and the accelerated code agree, and values
+// chain. The block layout round-trips for every record count around a block length (K = 3 here).
+TEST(LogToolsFormat, Crc32cAndTheBlockLayoutRoundTrip) {
+  EXPECT_EQ(matep::crc32c("123456789", 9), 0xE3069283u);
+  EXPECT_EQ(matep::crc32c_portable("123456789", 9), 0xE3069283u);
+  EXPECT_EQ(matep::crc32c("", 0), 0u);
+  std::mt19937_64 rng(7);
+  std::vector<unsigned char> data(1000);
+  for (auto& b : data) b = static_cast<unsigned char>(rng());
+  for (const std::size_t n : {1u, 7u, 8u, 9u, 263u, 264u, 1000u}) {
+    EXPECT_EQ(matep::crc32c(data.data(), n), matep::crc32c_portable(data.data(), n)) << n;
+    EXPECT_EQ(matep::crc32c(data.data() + n / 2, n - n / 2, matep::crc32c(data.data(), n / 2)),
+              matep::crc32c(data.data(), n))
+        << n;
+  }
+  const fs::path d = tmpdir("blocks");
+  for (std::uint64_t n = 0; n <= 7; ++n) {
+    const fs::path log = d / ("k3_" + std::to_string(n) + ".bin");
+    std::vector<matep::EventRecord> recs;
+    {
+      SyntheticLog gen(d / "unused.bin", 10);
+      for (std::uint64_t i = 0; i < n; ++i) recs.push_back(gen.next());
+      std::FILE* f = std::fopen(log.c_str(), "wb");
+      ASSERT_NE(f, nullptr);
+      matep::EventLogEncoder enc(f, log.string(), 3, 10, false, 3);
+      for (const auto& r : recs) enc.add(r);
+      enc.finish();
+      std::fclose(f);
+    }
+    const std::uint64_t blocks = n / 3 + 1;  // the last holds n % 3 records (0..2)
+    EXPECT_EQ(fs::file_size(log), matep::kEventLogHeaderSize + n * matep::kEventRecordSize +
+                                      blocks * matep::kEventBlockTrailerSize);
+    matep::EventLogReader reader(log.string());
+    EXPECT_EQ(reader.header().block_records, 3u);
+    EXPECT_EQ(reader.records(), n);
+    matep::EventRecord r;
+    std::uint64_t i = 0;
+    while (reader.next(r)) {
+      ASSERT_LT(i, n);
+      EXPECT_EQ(encode(r), encode(recs[i])) << n << " " << i;
+      EXPECT_EQ(slurp(log).substr(matep::record_offset(reader.header(), i), matep::kEventRecordSize), encode(recs[i]));
+      ++i;
+    }
+    EXPECT_EQ(i, n);
+    EXPECT_TRUE(matep::verify_log(log.string(), nullptr, 1e-9).ok);
+  }
+  fs::remove_all(d);
+}
+
+// Logs of versions 1 and 2, written by hand with their own layout (no blocks, no checksums), still
+// read with every tool; filter writes them as version 3 with the same records (and the fixed-grain
+// flag for version 2). A version-2 record with a fixed partner is refused when labelled version 1.
+TEST(LogToolsFormat, VersionOneAndTwoLogsStillRead) {
+  const fs::path d = tmpdir("old");
+  std::vector<matep::EventRecord> recs;
+  {
+    SyntheticLog s(d / "v1.bin", 10);
+    for (int k = 0; k < 20; ++k) {
+      recs.push_back(s.next());
+      s.write(recs.back());
+    }
+    SyntheticLog f(d / "v2.bin", 10, matep::kEventLogVersionFixed);
+    for (const auto& r : recs) f.write(r);
+    f.write(fixed_partner_record(recs.back().time + 1.0));
+    SyntheticLog g(d / "v2_as_v1.bin", 10);
+    for (const auto& r : recs) g.write(r);
+    g.write(fixed_partner_record(recs.back().time + 1.0));
+  }
+  EXPECT_EQ(fs::file_size(d / "v1.bin"), matep::kEventLogHeaderSize + 20 * matep::kEventRecordSize);
+  for (const std::string v : {"v1", "v2"}) {
+    const std::string log = (d / (v + ".bin")).string();
+    const std::uint64_t n = v == "v1" ? 20 : 21;
+    matep::EventLogReader reader(log);
+    EXPECT_EQ(reader.header().version, v == "v1" ? 1u : 2u);
+    EXPECT_EQ(reader.header().fixed_grains(), v == "v2");
+    EXPECT_EQ(reader.records(), n);
+    matep::EventRecord r;
+    std::uint64_t i = 0;
+    while (reader.next(r)) {
+      if (i < recs.size()) {
+        EXPECT_EQ(encode(r), encode(recs[i])) << v << " " << i;
+      }
+      ++i;
+    }
+    EXPECT_EQ(i, n);
+    const Result st = sh("log stats " + log);
+    EXPECT_EQ(st.code, 0) << st.out;
+    EXPECT_NE(st.out.find("version " + v.substr(1)), std::string::npos) << st.out;
+    const Result ve = sh("log verify " + log);
+    EXPECT_EQ(ve.code, 0) << ve.out;
+    const Result ex = sh("log export " + log);
+    EXPECT_EQ(ex.code, 0) << ex.out;
+    EXPECT_EQ(count_lines(ex.out), n + 1);
+    const fs::path out = d / (v + "_filtered.bin");
+    ASSERT_EQ(sh("log filter " + log + " --out " + out.string()).code, 0);
+    matep::EventLogReader back(out.string());
+    EXPECT_EQ(back.header().version, matep::kEventLogVersionChecked);
+    EXPECT_EQ(back.header().fixed_grains(), v == "v2");
+    matep::EventLogReader again(log);
+    matep::EventRecord a, b;
+    std::uint64_t same = 0;
+    while (again.next(a) && back.next(b)) same += encode(a) == encode(b);
+    EXPECT_EQ(same, n);
+    EXPECT_TRUE(matep::verify_log(out.string(), nullptr, 1e-9).ok);
+  }
+  const Result bad = sh("log verify " + (d / "v2_as_v1.bin").string());
+  EXPECT_EQ(bad.code, 2) << bad.out;
+  EXPECT_NE(bad.out.find("corrupt event record 20 at byte offset " +
+                         std::to_string(matep::record_offset(matep::test::v1_header(), 20)) + ": mj = inf"),
+            std::string::npos)
+      << bad.out;
+  fs::remove_all(d);
+}

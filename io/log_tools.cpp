@@ -176,7 +176,7 @@ class AtomicOutput {
 
  private:
   [[noreturn]] void fail(const std::string& what) {
-    throw IoError(fmt::format("{}: {}: {}", out_, what, std::strerror(errno)));
+    throw WriteError(fmt::format("{}: {}: {}", out_, what, std::strerror(errno)));
   }
   std::string out_, tmp_;
   std::FILE* f_ = nullptr;
@@ -186,7 +186,7 @@ class AtomicOutput {
 
 void write_all(std::FILE* f, const std::string& s, const std::string& what) {
   if (!s.empty() && std::fwrite(s.data(), 1, s.size(), f) != s.size())
-    throw IoError(fmt::format("{}: write failed: {}", what, std::strerror(errno)));
+    throw WriteError(fmt::format("{}: write failed: {}", what, std::strerror(errno)));
 }
 
 // Collisions per particle id, in memory bounded by the log's size, not by the header's particle
@@ -459,7 +459,7 @@ std::uint64_t export_csv(const std::string& in, std::FILE* out) { return export_
 std::uint64_t export_csv(const std::string& in, const std::string& out_path) {
   if (out_path.empty()) {
     const std::uint64_t n = export_csv(in, stdout);
-    if (std::fflush(stdout) != 0) throw IoError(fmt::format("CSV output: write failed: {}", std::strerror(errno)));
+    if (std::fflush(stdout) != 0) throw WriteError(fmt::format("CSV output: write failed: {}", std::strerror(errno)));
     return n;
   }
   { EventLogReader check(in); }  // a bad header or a cut file is refused before any output exists

@@ -7,7 +7,7 @@ random moment between the start and a little after the run's usual end, and then
 folder holds exactly one complete set: the previous one, or the new one (finished, or
 "interrupted" after SIGINT / SIGTERM) -- never a mix, never none. A set is complete when
 summary.json parses, its time_reached is the last thermo.csv row's time, final_state.csv has one
-row per grain and events.bin holds whole records.
+row per grain and events.bin reads whole (matep log stats: every block checks).
 
   tools/kill_test.py [--kills 300] [--matep build/matep] [--seed 1]
 
@@ -33,6 +33,7 @@ METHODS = {
     "tdm": ("soft_gas.toml", 0.002, 0.05),
     "hybrid": ("cooling_clusters.toml", 0.05, 1.5),
 }
+MATEP = None
 SIGNALS = {"SIGINT": signal.SIGINT, "SIGTERM": signal.SIGTERM, "SIGKILL": signal.SIGKILL}
 
 
@@ -50,7 +51,8 @@ def complete_set(d):
     assert n == s["grains_at_end"], f"final_state.csv has {n} rows, summary.json says {s['grains_at_end']} grains"
     ev = os.path.join(d, "events.bin")
     if os.path.exists(ev):
-        assert (os.path.getsize(ev) - 64) % 264 == 0, "events.bin ends mid-record"
+        r = subprocess.run([MATEP, "log", "stats", ev], capture_output=True, text=True)
+        assert r.returncode == 0, "events.bin: " + r.stderr.strip()
     assert not os.path.exists(d + ".running") or os.path.isdir(d + ".running")
     return s["end_time"], s["status"]
 
@@ -67,6 +69,8 @@ def main():
     ap.add_argument("--matep", default=os.path.join(ROOT, "build", "matep"))
     ap.add_argument("--seed", type=int, default=1)
     a = ap.parse_args()
+    global MATEP
+    MATEP = a.matep
     rng = random.Random(a.seed)
     work = tempfile.mkdtemp(prefix="matep_kill_")
     counts = {}

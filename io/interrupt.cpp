@@ -47,11 +47,6 @@ void install_interrupt_handlers() {
 
 const std::atomic<bool>& stop_flag() { return g_stop; }
 
-void request_stop(int signal) {
-  if (g_signal == 0) g_signal = signal;
-  g_stop.store(true, std::memory_order_relaxed);
-}
-
 int stop_signal() { return g_signal; }
 
 const char* stop_signal_name() {

@@ -9,14 +9,11 @@
 
 namespace matep {
 
-// Installs the handlers (idempotent). Without them the stop flag only changes through
-// request_stop().
+// Installs the handlers (idempotent). Without them the stop flag never changes.
 void install_interrupt_handlers();
 // The flag the engines poll (EdmSettings::stop, TdmSettings::stop).
 const std::atomic<bool>& stop_flag();
-// Asks the running engine to stop, as a first signal would (signal 0: no signal).
-void request_stop(int signal = 0);
-// The signal that asked for the stop (0: none, or request_stop without one).
+// The signal that asked for the stop (0: none).
 int stop_signal();
 // "SIGINT", "SIGTERM", or "a stop request".
 const char* stop_signal_name();

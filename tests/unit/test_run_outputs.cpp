@@ -14,6 +14,7 @@
 #include <sstream>
 #include <string>
 #include <thread>
+#include <utility>
 #include <vector>
 
 #include "io/checked_file.hpp"
@@ -104,6 +105,15 @@ double expect_one_complete_set(const fs::path& d) {
   return std::stod(summary_value(summary, "end_time"));
 }
 
+// A fresh folder ROOT/NAME holding a previous run's complete set (EDM, end_time 0.1); returns
+// the folder and that run's summary.json.
+std::pair<fs::path, std::string> previous_set(const fs::path& root, const std::string& name) {
+  const fs::path d = root / name;
+  const auto r = run_cli("run " + kCases + "elastic_gas.toml --set run.end_time=0.1 --quiet --out " + d.string());
+  EXPECT_EQ(r.code, 0) << r.out;
+  return {d, slurp(d / "summary.json")};
+}
+
 }  // namespace
 
 TEST(CheckedFile, AFullDiskIsAnErrorNamingTheFileAndTheOsReason) {
@@ -154,10 +164,7 @@ TEST(RunOutputs, ANewRunReplacesThePreviousSetWholeAndKeepsTheUsersFiles) {
 
 TEST(RunOutputs, AFileSizeLimitEndsWithExitStatus4AndKeepsThePreviousSet) {
   const fs::path root = matep::test::fresh_dir("outputs_fsize");
-  const fs::path d = root / "gas";
-  auto r = run_cli("run " + kCases + "elastic_gas.toml --set run.end_time=0.1 --quiet --out " + d.string());
-  ASSERT_EQ(r.code, 0) << r.out;
-  const std::string before = slurp(d / "summary.json");
+  const auto [d, before] = previous_set(root, "gas");
   // The event log of a 2 s run is ~80 MB; a 256 KiB file-size limit stops its writer.
   const std::string cmd = "bash -c 'ulimit -f 256; exec " + std::string(MATEP_CLI) + " run " + kCases +
                           "elastic_gas.toml --set run.end_time=2 --quiet --out " + d.string() + "' 2>&1";
@@ -256,10 +263,7 @@ TEST(RunOutputs, ASecondRunIntoAFolderALiveRunHoldsIsRefused) {
 // run clears the staging folder it left.
 TEST(RunOutputs, AKilledRunLeavesThePreviousSetAndTheNextRunClearsItsStaging) {
   const fs::path root = matep::test::fresh_dir("outputs_kill");
-  const fs::path d = root / "out";
-  auto r = run_cli("run " + kCases + "elastic_gas.toml --set run.end_time=0.1 --quiet --out " + d.string());
-  ASSERT_EQ(r.code, 0) << r.out;
-  const std::string before = slurp(d / "summary.json");
+  const auto [d, before] = previous_set(root, "out");
   for (int sig : {SIGKILL, SIGINT}) {
     const pid_t pid = spawn_cli({"run", kCases + "elastic_gas.toml", "--set", "run.end_time=1000", "--quiet",
                                  "--out", d.string()},
@@ -285,7 +289,7 @@ TEST(RunOutputs, AKilledRunLeavesThePreviousSetAndTheNextRunClearsItsStaging) {
       expect_one_complete_set(d);
     }
   }
-  r = run_cli("run " + kCases + "elastic_gas.toml --set run.end_time=0.2 --quiet --out " + d.string());
+  const auto r = run_cli("run " + kCases + "elastic_gas.toml --set run.end_time=0.2 --quiet --out " + d.string());
   ASSERT_EQ(r.code, 0) << r.out;
   EXPECT_EQ(expect_one_complete_set(d), 0.2);
   fs::remove_all(root);

@@ -12,6 +12,7 @@
 #include <cstdint>
 #include <limits>
 #include <random>
+#include <type_traits>
 #include <string>
 #include <vector>
 
@@ -121,6 +122,16 @@ struct InletClock {
   InletClock(const Inlet<D>& in, std::size_t index, double end_time)
       : inlet(&in), slots(in.slots(end_time)), rng(in.seed * 0x9e3779b97f4a7c15ULL + index + 1) {}
   bool pending() const { return next < slots; }
+  // Checkpoints (engine/state_archive.hpp): what changes as grains are drawn.
+  template <class A>
+  void archive(A& a) {
+    static_assert(std::is_trivially_copyable_v<std::mt19937_64>);
+    a(next);
+    a(slots);
+    a(inserted);
+    a(missed);
+    a(rng);
+  }
   InletReport report() const { return {inlet->name, slots, inserted, missed}; }
   double next_time() const { return inlet->slot_time(next); }
 

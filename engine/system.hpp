@@ -23,6 +23,7 @@
 #include "contact/wall.hpp"
 #include "engine/grid.hpp"
 #include "engine/inlet.hpp"
+#include "engine/state_archive.hpp"
 
 namespace matep {
 
@@ -173,6 +174,8 @@ struct EdmSettings {
   // When set and it turns true (a signal handler may set it), the run stops between two events
   // with status "interrupted": the state is that after the last event handled.
   const std::atomic<bool>* stop = nullptr;
+  // Checkpoints (engine/state_archive.hpp): where the run's states go, and one to resume from.
+  const CheckpointHooks* checkpoint = nullptr;
 };
 
 }  // namespace matep

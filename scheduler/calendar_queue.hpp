@@ -77,6 +77,9 @@ class CalendarQueue {
   void pop();
   void clear();
 
+  // The time of id's entry (precondition: contains(id)); checkpoints list the entries with it.
+  [[nodiscard]] double time_of(int id) const { return node_[static_cast<std::size_t>(id)].t; }
+
   // Diagnostics (tests, benchmarks, logs).
   [[nodiscard]] double bin_width() const { return 1.0 / scale_; }
   [[nodiscard]] std::size_t bin_count() const { return nbins_; }

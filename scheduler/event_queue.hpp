@@ -21,6 +21,7 @@
 //   std::pair<int, double> top()       (id, t) of the smallest entry.  Precondition: !empty().
 //                                      May reorganise internal state (not const for the calendar).
 //   void pop()                         remove the entry top() returns.  Precondition: !empty().
+//   double time_of(int id) const       the time of id's entry.  Precondition: contains(id).
 //   void clear()                       remove every entry (capacity unchanged).
 //
 // Order: the strict total order on (t, id), i.e. ties in t are broken by the smaller id.  Because the
@@ -43,6 +44,7 @@ concept EventQueue = std::constructible_from<Q, std::size_t> &&
       { q.set(id, t) } -> std::same_as<void>;
       { q.erase(id) } -> std::same_as<void>;
       { cq.contains(id) } -> std::same_as<bool>;
+      { cq.time_of(id) } -> std::same_as<double>;
       { cq.empty() } -> std::same_as<bool>;
       { cq.size() } -> std::same_as<std::size_t>;
       { q.top() } -> std::same_as<std::pair<int, double>>;

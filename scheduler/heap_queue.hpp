@@ -76,6 +76,8 @@ class BasicHeapQueue {
     assert(in_range(id));
     return present_[id] != 0;
   }
+  // The time of id's entry (precondition: contains(id)); checkpoints list the entries with it.
+  [[nodiscard]] double time_of(int id) const { return (*handle_[id]).t; }
   [[nodiscard]] bool empty() const { return heap_.empty(); }
   [[nodiscard]] std::size_t size() const { return heap_.size(); }
   [[nodiscard]] std::size_t capacity() const { return present_.size(); }

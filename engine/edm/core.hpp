@@ -37,6 +37,7 @@
 #include "engine/grid.hpp"
 #include "engine/huge_pages.hpp"
 #include "engine/rough_rules.hpp"
+#include "engine/state_archive.hpp"
 #include "engine/wall_loads.hpp"
 
 namespace matep::edm {
@@ -118,8 +119,15 @@ class EdmCore {
     window_ = set_.collapse_window > 0.0 ? set_.collapse_window : 1e-9 * set_.end_time;
     // System events, in this order: thermo sampler, end of run, snapshots, then the extension's.
     sample_id_ = add_system_event("thermo", [this](double t) { return on_sample_event(t); });
-    end_id_ = add_system_event("end", [](double) { return false; });
+    end_id_ = add_system_event("end", [this](double t) {
+      save_checkpoint(t);  // the state at the end, to continue from
+      return false;
+    });
     snapshot_id_ = add_system_event("snapshot", [this](double t) { return on_snapshot_event(t); });
+    // Checkpoints every interval: the event saves the state and changes nothing, so that a run with
+    // them follows the same course as one without.
+    if (set_.checkpoint && set_.checkpoint->interval > 0.0)
+      checkpoint_id_ = add_system_event("checkpoint", [this](double t) { return on_checkpoint_event(t); });
     // Inlets: one system event each, and a particle slot per grain due (engine/inlet.hpp), absent
     // until inserted (with the inlet's largest radius, so that the cells hold it).
     next_id_ = N0_;
@@ -206,31 +214,47 @@ class EdmCore {
   // ---- the event loop -------------------------------------------------------------------------
   RunResult<D> run() {
     const auto wall0 = std::chrono::steady_clock::now();
-    derived().ext_start();
-    emit_sample(0.0, /*interval=*/0.0);
-    for (int i = 0; i < N_; ++i)
-      if (!is_fixed(i) && !is_removed(i) && derived().predicted(i)) predict(i, 0.0);
-    for (std::size_t k = 0; k < clocks_.size(); ++k)
-      if (clocks_[k].pending()) queue_->set(inlet_ids_[k], clocks_[k].next_time());
-    if (set_.thermo_interval > 0.0 && set_.thermo_interval < set_.end_time * (1.0 - 1e-12))
-      queue_->set(sample_id_, set_.thermo_interval);
-    queue_->set(end_id_, set_.end_time);
     for (auto* o : observers_)
       if (o->wants_snapshots()) snapshot_observers_.push_back(o);
     snapshots_ = set_.snapshot_interval > 0.0 && !snapshot_observers_.empty();
-    if (snapshots_) {
-      emit_snapshot(0.0);
-      if (set_.snapshot_interval < set_.end_time * (1.0 - 1e-12)) queue_->set(snapshot_id_, set_.snapshot_interval);
+    if (set_.checkpoint && set_.checkpoint->resume) {
+      // Continue a saved state: the samples and snapshots up to it are already written.
+      StateReader r(*set_.checkpoint->resume);
+      derived().archive(r);
+      if (!r.done()) throw StateError("the engine state is longer than this scene's (a checkpoint of another scene)");
+      // The end (popped when the state was saved at it), and the recurring events a longer run
+      // still has due.
+      queue_->set(end_id_, set_.end_time);
+      rearm(sample_id_, sample_k_, set_.thermo_interval);
+      if (snapshots_) rearm(snapshot_id_, snapshot_k_, set_.snapshot_interval);
+      if (checkpoint_id_ >= 0) rearm(checkpoint_id_, checkpoint_k_, set_.checkpoint->interval);
+    } else {
+      derived().ext_start();
+      emit_sample(0.0, /*interval=*/0.0);
+      for (int i = 0; i < N_; ++i)
+        if (!is_fixed(i) && !is_removed(i) && derived().predicted(i)) predict(i, 0.0);
+      for (std::size_t k = 0; k < clocks_.size(); ++k)
+        if (clocks_[k].pending()) queue_->set(inlet_ids_[k], clocks_[k].next_time());
+      if (set_.thermo_interval > 0.0 && set_.thermo_interval < set_.end_time * (1.0 - 1e-12))
+        queue_->set(sample_id_, set_.thermo_interval);
+      queue_->set(end_id_, set_.end_time);
+      if (snapshots_) {
+        emit_snapshot(0.0);
+        if (set_.snapshot_interval < set_.end_time * (1.0 - 1e-12)) queue_->set(snapshot_id_, set_.snapshot_interval);
+      }
+      if (checkpoint_id_ >= 0 && set_.checkpoint->interval < set_.end_time * (1.0 - 1e-12))
+        queue_->set(checkpoint_id_, set_.checkpoint->interval);
     }
 
     RunResult<D> res;
-    std::uint64_t processed = 0;
     std::uint64_t polls = 0;
     while (!queue_->empty()) {
-      // A stop request (a signal): leave before the next event, with the state after the last.
+      // A stop request (a signal): leave before the next event, with the state after the last
+      // (saved first when the run keeps checkpoints).
       if ((++polls & 0x3ff) == 0 && set_.stop && set_.stop->load(std::memory_order_relaxed)) {
         status_ = "interrupted";
         message_ = fmt::format("stopped on request at t = {:.17g}", now_);
+        save_checkpoint(now_);
         break;
       }
       const auto [id, t] = queue_->top();
@@ -240,14 +264,14 @@ class EdmCore {
         if (!system_[static_cast<std::size_t>(id - N_)].fire(t)) break;
         continue;
       }
-      if (processed++ >= set_.max_events) {
+      if (processed_++ >= set_.max_events) {
         status_ = "max_events";
         message_ = fmt::format("stopped after run.max_events = {} events at t = {:.17g}",
                                set_.max_events, t);
         break;
       }
-      if ((processed & 0x3fff) == 0)
-        for (auto* o : observers_) o->on_progress(t, processed);
+      if ((processed_ & 0x3fff) == 0)
+        for (auto* o : observers_) o->on_progress(t, processed_);
       // Start fetching the next event's particle while this one is handled (large systems).
       if (!queue_->empty()) {
         const int next_id = queue_->top().first;
@@ -312,6 +336,89 @@ class EdmCore {
     if (next < set_.end_time * (1.0 - 1e-12)) queue_->set(sample_id_, next);
     return true;
   }
+  // Schedules recurring event id at its k-th time when it is due before the end and not queued.
+  void rearm(int id, std::uint64_t k, double interval) {
+    if (id < 0 || interval <= 0.0 || queue_->contains(id)) return;
+    const double next = static_cast<double>(k) * interval;
+    if (next > now_ && next < set_.end_time * (1.0 - 1e-12)) queue_->set(id, next);
+  }
+  bool on_checkpoint_event(double t) {
+    ++checkpoint_k_;
+    const double next = static_cast<double>(checkpoint_k_) * set_.checkpoint->interval;
+    if (next < set_.end_time * (1.0 - 1e-12)) queue_->set(checkpoint_id_, next);
+    save_checkpoint(t);
+    return true;
+  }
+
+  // ---- checkpoints (engine/state_archive.hpp) ---------------------------------------------------
+  // Hands the state between two events to the run (nothing when it keeps no checkpoints).
+  void save_checkpoint(double t) {
+    if (!set_.checkpoint || !set_.checkpoint->save) return;
+    StateWriter w;
+    derived().archive(w);
+    set_.checkpoint->save(t, w.bytes);
+  }
+  struct QueueEntry {
+    int id;
+    double t;
+  };
+  // Everything the core's future depends on; what init makes from the scene is made again. The
+  // queue is saved as its entries: its order is the total order on (t, id) (scheduler/), so the
+  // entries alone fix what pops next.
+  template <class A>
+  void archive_core(A& a) {
+    a.tag("edm.particles");
+    a(now_);
+    a(processed_);
+    a.same(hot_, "particle slots");
+    a.same(cold_, "particle slots");
+    a.same(head_, "cells");
+    a.same(next_, "particle slots");
+    a.same(sys_.w, "spins");
+    a.tag("edm.flows");
+    a(removed_);
+    a(absent_);
+    a(grains_out_);
+    a(mass_out_);
+    a.same(clocks_, "inlets");
+    a(next_id_);
+    a(grains_in_);
+    a(mass_in_);
+    a.tag("edm.counters");
+    a.same(wall_loads_.impulse, "walls");
+    a.same(wall_loads_.angular, "walls");
+    a(counts_);
+    a(virial_);
+    a(prev_ke_);
+    a(sample_k_);
+    a(snapshot_k_);
+    a(checkpoint_k_);
+    a(last_sample_time_);
+    a(last_snapshot_time_);
+    a.tag("edm.queue");
+    std::vector<QueueEntry> q;
+    if constexpr (!A::loading) {
+      const int ids = N_ + static_cast<int>(system_.size());
+      for (int id = 0; id < ids; ++id)
+        if (queue_->contains(id)) q.push_back({id, queue_->time_of(id)});
+    }
+    a(q);
+    if constexpr (A::loading) {
+      const int ids = N_ + static_cast<int>(system_.size());
+      queue_->clear();
+      for (const QueueEntry& e : q) {
+        if (e.id < 0 || e.id >= ids || e.t != e.t)
+          throw StateError("the engine state lists an event that this scene does not have (another scene)");
+        queue_->set(e.id, e.t);
+      }
+    }
+  }
+  // Pure EDM: the core is the whole state.
+  template <class A>
+  void archive(A& a) {
+    archive_core(a);
+  }
+
   bool on_snapshot_event(double t) {
     emit_snapshot(t);
     last_snapshot_time_ = t;
@@ -1109,8 +1216,9 @@ class EdmCore {
   std::string status_, message_;
 
   std::vector<SystemEvent> system_;  // ids N_, N_ + 1, ...
-  int sample_id_ = -1, end_id_ = -1, snapshot_id_ = -1;
-  std::uint64_t sample_k_ = 1, snapshot_k_ = 1;
+  int sample_id_ = -1, end_id_ = -1, snapshot_id_ = -1, checkpoint_id_ = -1;
+  std::uint64_t sample_k_ = 1, snapshot_k_ = 1, checkpoint_k_ = 1;
+  std::uint64_t processed_ = 0;  // particle events handled
   double last_sample_time_ = 0.0, last_snapshot_time_ = 0.0;
   bool snapshots_ = false;
 

@@ -1,0 +1,170 @@
+// The dynamic state of an engine as bytes, for checkpoints (io/checkpoint.hpp). Each engine lists
+// what its future depends on in one member template `template <class A> void archive(A& a)` that
+// both saves and loads: a(x) for a value or a vector of plain values, a.tag("name") between parts
+// (a loaded state whose tags differ is refused), a.same(v, "what") for an array whose length the
+// scene fixes (a state for another scene is refused naming it). Values are the bytes in memory:
+// a checkpoint resumes on the machine class that wrote it (io/ checks the byte order and version).
+#pragma once
+
+#include <fmt/format.h>
+
+#include <array>
+#include <cstdint>
+#include <cstring>
+#include <functional>
+#include <stdexcept>
+#include <string>
+#include <type_traits>
+#include <utility>
+#include <vector>
+
+namespace matep {
+
+// A state that cannot be loaded into this engine (another scene, another layout, cut short).
+struct StateError : std::runtime_error {
+  using std::runtime_error::runtime_error;
+};
+
+// How the engine hands its state to the run (io/) and takes one back. The engines call save at a
+// checkpoint moment (every interval, on a stop request, at the end) with the time and their state;
+// resume, when set, is a state saved by the same engine for the same scene to continue from.
+struct CheckpointHooks {
+  double interval = 0.0;  // 0: only at a stop request and at the end
+  std::function<void(double t, const std::vector<std::uint8_t>& state)> save;
+  const std::vector<std::uint8_t>* resume = nullptr;
+};
+
+namespace archive_detail {
+template <class T>
+struct is_vector : std::false_type {};
+template <class T, class A>
+struct is_vector<std::vector<T, A>> : std::true_type {};
+template <class T, class A>
+concept HasArchive = requires(T& t, A& a) { t.archive(a); };
+// Saved as its bytes: a value that owns no resources (trivially destructible: numbers, enums,
+// plain structs, Eigen's fixed-size vectors) and lists no parts of its own.
+template <class T, class A>
+concept Plain = std::is_trivially_destructible_v<T> && !std::is_pointer_v<T> && !is_vector<T>::value &&
+                !HasArchive<T, A>;
+}  // namespace archive_detail
+
+class StateWriter {
+ public:
+  static constexpr bool loading = false;
+  std::vector<std::uint8_t> bytes;
+
+  void tag(const char* name) {
+    const std::uint32_t n = static_cast<std::uint32_t>(std::strlen(name));
+    raw(&n, sizeof n);
+    raw(name, n);
+  }
+  template <class T>
+  void operator()(const T& v) {
+    using namespace archive_detail;
+    if constexpr (HasArchive<T, StateWriter>) {
+      const_cast<T&>(v).archive(*this);
+    } else if constexpr (Plain<T, StateWriter>) {
+      raw(&v, sizeof v);
+    } else if constexpr (is_vector<T>::value) {
+      using E = typename T::value_type;
+      const std::uint64_t n = v.size();
+      raw(&n, sizeof n);
+      if constexpr (Plain<E, StateWriter>) {
+        if (n > 0) raw(v.data(), n * sizeof(E));
+      } else {
+        for (const auto& e : v) (*this)(e);
+      }
+    } else if constexpr (std::is_same_v<T, std::string>) {
+      const std::uint64_t n = v.size();
+      raw(&n, sizeof n);
+      raw(v.data(), n);
+    } else {
+      static_assert(sizeof(T) == 0, "no archive rule for this type");
+    }
+  }
+  template <class V>
+  void same(const V& v, const char*) {
+    (*this)(v);
+  }
+
+ private:
+  void raw(const void* p, std::size_t n) {
+    const auto* b = static_cast<const std::uint8_t*>(p);
+    bytes.insert(bytes.end(), b, b + n);
+  }
+};
+
+class StateReader {
+ public:
+  static constexpr bool loading = true;
+  explicit StateReader(const std::vector<std::uint8_t>& bytes) : p_(bytes.data()), end_(bytes.data() + bytes.size()) {}
+
+  void tag(const char* name) {
+    std::uint32_t n = 0;
+    raw(&n, sizeof n, name);
+    const std::size_t want = std::strlen(name);
+    if (n != want || left() < n || std::memcmp(p_, name, n) != 0)
+      throw StateError(fmt::format("the engine state has no part \"{}\" where it is expected (a checkpoint of "
+                                   "another method or version)",
+                                   name));
+    p_ += n;
+    last_ = name;
+  }
+  template <class T>
+  void operator()(T& v) {
+    using namespace archive_detail;
+    if constexpr (HasArchive<T, StateReader>) {
+      v.archive(*this);
+    } else if constexpr (Plain<T, StateReader>) {
+      raw(&v, sizeof v, last_);
+    } else if constexpr (is_vector<T>::value) {
+      using E = typename T::value_type;
+      std::uint64_t n = 0;
+      raw(&n, sizeof n, last_);
+      // Bounded by the bytes left before anything is allocated.
+      if (n > left() / (Plain<E, StateReader> ? sizeof(E) : 1))
+        throw StateError(fmt::format("the engine state is cut short in \"{}\"", last_));
+      if constexpr (Plain<E, StateReader>) {
+        v.resize(static_cast<std::size_t>(n));
+        if (n > 0) raw(v.data(), n * sizeof(E), last_);
+      } else {
+        if constexpr (std::is_default_constructible_v<E>) {
+          v.resize(static_cast<std::size_t>(n));
+        } else if (n != v.size()) {
+          throw StateError(fmt::format("the checkpoint holds {} entries in \"{}\", this scene {}", n, last_, v.size()));
+        }
+        for (auto& e : v) (*this)(e);
+      }
+    } else if constexpr (std::is_same_v<T, std::string>) {
+      std::uint64_t n = 0;
+      raw(&n, sizeof n, last_);
+      if (n > left()) throw StateError(fmt::format("the engine state is cut short in \"{}\"", last_));
+      v.assign(reinterpret_cast<const char*>(p_), n);
+      p_ += n;
+    } else {
+      static_assert(sizeof(T) == 0, "no archive rule for this type");
+    }
+  }
+  // An array whose length the scene fixes (one entry per particle slot, wall, material ...).
+  template <class V>
+  void same(V& v, const char* what) {
+    const std::size_t had = v.size();
+    (*this)(v);
+    if (v.size() != had)
+      throw StateError(fmt::format("the checkpoint holds {} {}, this scene {}", v.size(), what, had));
+  }
+  bool done() const { return p_ == end_; }
+
+ private:
+  std::size_t left() const { return static_cast<std::size_t>(end_ - p_); }
+  void raw(void* dst, std::size_t n, const char* where) {
+    if (left() < n) throw StateError(fmt::format("the engine state is cut short in \"{}\"", where));
+    std::memcpy(dst, p_, n);
+    p_ += n;
+  }
+  const std::uint8_t* p_;
+  const std::uint8_t* end_;
+  const char* last_ = "header";
+};
+
+}  // namespace matep

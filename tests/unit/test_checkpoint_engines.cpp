@@ -1,0 +1,205 @@
+// Checkpoints at the engine level (engine/state_archive.hpp): a run stopped at a random moment, or
+// checkpointed every interval, and continued from the saved state follows the uninterrupted run
+// bit for bit: the same collisions and thermo samples after the checkpoint, the same final state.
+#include <gtest/gtest.h>
+
+#include <atomic>
+#include <cstring>
+#include <random>
+#include <vector>
+
+#include "engine/edm.hpp"
+#include "engine/hybrid.hpp"
+#include "engine/tdm.hpp"
+#include "tests/support/systems.hpp"
+
+namespace matep {
+namespace {
+using test::lattice_gas;
+
+// Everything a run reports as it goes, as raw numbers; `cut` marks the length at each save.
+template <int D>
+class Trace final : public Observer<D> {
+ public:
+  explicit Trace(std::atomic<bool>* stop = nullptr, std::uint64_t stop_after = 0, bool by_collisions = true)
+      : stop_(stop), stop_after_(stop_after), by_collisions_(by_collisions) {}
+  bool wants_collisions() const override { return true; }
+  void on_collision(const CollisionRecord<D>& c) override {
+    put(c.time);
+    put(static_cast<double>(c.i));
+    put(static_cast<double>(c.j));
+    for (int k = 0; k < D; ++k) {
+      put(c.vi_after[k]);
+      put(c.vj_after[k]);
+    }
+    if (stop_ && by_collisions_ && ++collisions_ == stop_after_) stop_->store(true);
+  }
+  void on_sample(const ThermoSample& s) override {
+    put(s.time);
+    put(s.kinetic_energy);
+    put(s.potential_energy);
+    put(static_cast<double>(s.collisions));
+    if (stop_ && !by_collisions_ && ++samples_ == stop_after_) stop_->store(true);
+  }
+  void mark() { cuts.push_back(values.size()); }
+  std::vector<double> values;
+  std::vector<std::size_t> cuts;
+
+ private:
+  void put(double v) { values.push_back(v); }
+  std::atomic<bool>* stop_;
+  std::uint64_t stop_after_;
+  bool by_collisions_;
+  std::uint64_t collisions_ = 0, samples_ = 0;
+};
+
+template <int D>
+bool same_bits(const std::vector<Vec<D>>& a, const std::vector<Vec<D>>& b) {
+  return a.size() == b.size() && (a.empty() || std::memcmp(a.data(), b.data(), a.size() * sizeof(Vec<D>)) == 0);
+}
+
+template <int D>
+void expect_same_result(const RunResult<D>& a, const RunResult<D>& b) {
+  EXPECT_EQ(a.status, b.status);
+  EXPECT_EQ(a.time, b.time);
+  EXPECT_TRUE(same_bits<D>(a.x, b.x)) << "final positions differ";
+  EXPECT_TRUE(same_bits<D>(a.v, b.v)) << "final velocities differ";
+  EXPECT_EQ(a.counts.pair, b.counts.pair);
+  EXPECT_EQ(a.counts.wall, b.counts.wall);
+  EXPECT_EQ(a.soft.steps, b.soft.steps);
+  EXPECT_EQ(a.hybrid.to_soft, b.hybrid.to_soft);
+  EXPECT_EQ(a.hybrid.by_overlap, b.hybrid.by_overlap);
+  EXPECT_EQ(a.mode, b.mode);
+}
+
+// A run of one method: `run(settings hooks, observers)`.
+// Stopped after a random number of collisions (samples for TDM), at most 3/4 of the run's.
+template <int D, class Run>
+void check_resume(Run&& run, std::uint64_t seed, const char* what) {
+  // The uninterrupted run.
+  Trace<D> whole;
+  const RunResult<D> ref = run(nullptr, nullptr, &whole);
+  ASSERT_EQ(ref.status, "ok") << ref.message;
+  const std::uint64_t unit_max = std::max<std::uint64_t>(2, 3 * (ref.counts.collisions() > 0 ? ref.counts.collisions() : ref.counts.samples) / 4);
+  std::mt19937_64 rng(seed);
+  for (int trial = 0; trial < 3; ++trial) {
+    SCOPED_TRACE(::testing::Message() << what << " trial " << trial);
+    // Stopped after a random number of collisions (or samples): the state at the stop is saved.
+    std::atomic<bool> stop{false};
+    const std::uint64_t after = 1 + rng() % unit_max;
+    Trace<D> first(&stop, after, ref.counts.collisions() > 0);
+    std::vector<std::uint8_t> state;
+    double t_saved = -1.0;
+    CheckpointHooks save;
+    save.save = [&](double t, const std::vector<std::uint8_t>& s) {
+      state = s;
+      t_saved = t;
+      first.mark();
+    };
+    const RunResult<D> part = run(&save, &stop, &first);
+    ASSERT_EQ(part.status, "interrupted");
+    ASSERT_FALSE(state.empty());
+    ASSERT_EQ(first.cuts.size(), 1u);
+    EXPECT_GT(t_saved, 0.0);
+    // Continued from it.
+    Trace<D> rest;
+    CheckpointHooks resume;
+    resume.resume = &state;
+    const RunResult<D> cont = run(&resume, nullptr, &rest);
+    std::vector<double> joined(first.values.begin(), first.values.begin() + static_cast<std::ptrdiff_t>(first.cuts[0]));
+    joined.insert(joined.end(), rest.values.begin(), rest.values.end());
+    ASSERT_EQ(joined.size(), whole.values.size());
+    EXPECT_EQ(std::memcmp(joined.data(), whole.values.data(), joined.size() * sizeof(double)), 0)
+        << "the continued run's reports differ from the uninterrupted run's";
+    expect_same_result(cont, ref);
+  }
+}
+
+EdmSettings edm_set(double end, double thermo) {
+  EdmSettings s;
+  s.end_time = end;
+  s.thermo_interval = thermo;
+  return s;
+}
+
+TEST(CheckpointEngines, EdmGasResumesBitForBit) {
+  const System<3> sys = lattice_gas<3>(6, 0.3, 1.0, 0.9, 11);
+  auto run = [&](const CheckpointHooks* h, std::atomic<bool>* stop, Observer<3>* obs) {
+    EdmSettings s = edm_set(20.0, 0.25);
+    s.checkpoint = h;
+    s.stop = stop;
+    return run_edm<3>(sys, s, QueueKind::Calendar, {obs});
+  };
+  check_resume<3>(run, 1, "edm 3D calendar");
+  auto heap = [&](const CheckpointHooks* h, std::atomic<bool>* stop, Observer<3>* obs) {
+    EdmSettings s = edm_set(20.0, 0.25);
+    s.checkpoint = h;
+    s.stop = stop;
+    return run_edm<3>(sys, s, QueueKind::Heap, {obs});
+  };
+  check_resume<3>(heap, 2, "edm 3D heap");
+}
+
+TEST(CheckpointEngines, EdmIntervalCheckpointsDoNotChangeTheRun) {
+  const System<2> sys = lattice_gas<2>(12, 0.4, 1.0, 0.8, 5);
+  Trace<2> plain;
+  EdmSettings s = edm_set(2.0, 0.1);
+  const RunResult<2> ref = run_edm<2>(sys, s, QueueKind::Calendar, {&plain});
+  // Every 0.3: six states; each continued gives the uninterrupted run.
+  std::vector<std::vector<std::uint8_t>> states;
+  Trace<2> with;
+  CheckpointHooks every;
+  every.interval = 0.3;
+  every.save = [&](double, const std::vector<std::uint8_t>& st) {
+    states.push_back(st);
+    with.mark();
+  };
+  s.checkpoint = &every;
+  const RunResult<2> r = run_edm<2>(sys, s, QueueKind::Calendar, {&with});
+  ASSERT_EQ(states.size(), 7u);  // 0.3 ... 1.8, and the end
+  EXPECT_EQ(with.values, plain.values);
+  expect_same_result(r, ref);
+  for (std::size_t k : {std::size_t{0}, std::size_t{3}, std::size_t{5}, std::size_t{6}}) {
+    SCOPED_TRACE(::testing::Message() << "checkpoint " << k);
+    Trace<2> rest;
+    CheckpointHooks resume;  // with the interval of the run that saved it (its events are in the state)
+    resume.interval = every.interval;
+    resume.resume = &states[k];
+    s.checkpoint = &resume;
+    const RunResult<2> cont = run_edm<2>(sys, s, QueueKind::Calendar, {&rest});
+    std::vector<double> joined(plain.values.begin(), plain.values.begin() + static_cast<std::ptrdiff_t>(with.cuts[k]));
+    joined.insert(joined.end(), rest.values.begin(), rest.values.end());
+    EXPECT_EQ(joined, plain.values);
+    expect_same_result(cont, ref);
+  }
+}
+
+TEST(CheckpointEngines, AStateOfAnotherSystemIsRefused) {
+  const System<3> a = lattice_gas<3>(4, 0.3, 1.0, 0.9, 1);
+  const System<3> b = lattice_gas<3>(5, 0.3, 1.0, 0.9, 1);
+  std::vector<std::uint8_t> state;
+  CheckpointHooks save;
+  save.save = [&](double, const std::vector<std::uint8_t>& s) { state = s; };
+  EdmSettings s = edm_set(0.5, 0.0);
+  s.checkpoint = &save;
+  run_edm<3>(a, s, QueueKind::Calendar);
+  ASSERT_FALSE(state.empty());
+  CheckpointHooks resume;
+  resume.resume = &state;
+  s.checkpoint = &resume;
+  try {
+    run_edm<3>(b, s, QueueKind::Calendar);
+    FAIL() << "a state of 64 particles loaded into 125";
+  } catch (const StateError& e) {
+    EXPECT_NE(std::string(e.what()).find("64 particle slots, this scene 125"), std::string::npos) << e.what();
+  }
+  // Cut short anywhere: refused, never read past the end.
+  for (std::size_t cut : {std::size_t{3}, state.size() / 2, state.size() - 1}) {
+    std::vector<std::uint8_t> part(state.begin(), state.begin() + static_cast<std::ptrdiff_t>(cut));
+    resume.resume = &part;
+    EXPECT_THROW(run_edm<3>(a, s, QueueKind::Calendar), StateError) << cut;
+  }
+}
+
+}  // namespace
+}  // namespace matep

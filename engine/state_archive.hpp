@@ -2,7 +2,8 @@
 // what its future depends on in one member template `template <class A> void archive(A& a)` that
 // both saves and loads: a(x) for a value or a vector of plain values, a.tag("name") between parts
 // (a loaded state whose tags differ is refused), a.same(v, "what") for an array whose length the
-// scene fixes (a state for another scene is refused naming it). Values are the bytes in memory:
+// scene fixes (a state for another scene is refused naming it), a.check(v, "what") for a setting
+// the run must share with the one that saved it. Values are the bytes in memory:
 // a checkpoint resumes on the machine class that wrote it (io/ checks the byte order and version).
 #pragma once
 
@@ -86,6 +87,10 @@ class StateWriter {
   void same(const V& v, const char*) {
     (*this)(v);
   }
+  template <class T>
+  void check(const T& v, const char*) {
+    (*this)(v);
+  }
 
  private:
   void raw(const void* p, std::size_t n) {
@@ -152,6 +157,13 @@ class StateReader {
     (*this)(v);
     if (v.size() != had)
       throw StateError(fmt::format("the checkpoint holds {} {}, this scene {}", v.size(), what, had));
+  }
+  // A setting the state was made with, which this run must share (the time step, the threads).
+  template <class T>
+  void check(const T& v, const char* what) {
+    T had{};
+    (*this)(had);
+    if (!(had == v)) throw StateError(fmt::format("the checkpoint was written with {} = {}, this run has {}", what, had, v));
   }
   bool done() const { return p_ == end_; }
 

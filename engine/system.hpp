@@ -79,6 +79,7 @@ struct Outlet {
 
 template <int D>
 struct System {
+  static constexpr int dimension = D;
   Vec<D> lower = Vec<D>::Zero();
   Vec<D> upper = Vec<D>::Ones();
   std::array<bool, D> periodic{};

@@ -43,6 +43,8 @@ struct TdmSettings {
   // When set and it turns true (a signal handler may set it), the run stops at the next whole
   // step with status "interrupted" (every output written for that step).
   const std::atomic<bool>* stop = nullptr;
+  // Checkpoints (engine/state_archive.hpp): where the run's states go, and one to resume from.
+  const CheckpointHooks* checkpoint = nullptr;
 };
 
 // The checks run_tdm makes before it starts: the contact laws of every material pair, the time

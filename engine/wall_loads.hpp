@@ -20,6 +20,12 @@ struct WallLoads {
   std::vector<Vec<D>> impulse;   // on each wall, since the last report
   std::vector<Spin<D>> angular;  // about each wall's anchor
 
+  // Checkpoints (engine/state_archive.hpp).
+  template <class A>
+  void archive(A& a) {
+    a.same(impulse, "walls");
+    a.same(angular, "walls");
+  }
   void resize(std::size_t walls) {
     impulse.assign(walls, Vec<D>::Zero());
     angular.assign(walls, Spin<D>::Zero());

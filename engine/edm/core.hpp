@@ -385,8 +385,7 @@ class EdmCore {
     a(grains_in_);
     a(mass_in_);
     a.tag("edm.counters");
-    a.same(wall_loads_.impulse, "walls");
-    a.same(wall_loads_.angular, "walls");
+    a(wall_loads_);
     a(counts_);
     a(virial_);
     a(prev_ke_);

@@ -183,6 +183,79 @@ class TdmEngine {
   double max_rel_ = 0.0, max_abs_ = 0.0;
   std::string status_ = "ok", message_;
   bool stopping_ = false;  // a stop was requested (TdmSettings::stop): end at the next whole step
+  std::uint64_t k_sample_ = 1, k_snap_ = 1, k_check_ = 1;  // the next thermo row, snapshot, checkpoint
+
+  // Checkpoints (engine/state_archive.hpp): everything a step reads that an earlier step wrote,
+  // saved at a whole step after its forces (what setup makes from the scene is made again).
+  template <class A>
+  void archive(A& a) {
+    a.tag("tdm.particles");
+    a.check(dt_, "the time step");
+    a.check(T_req_, "threads");
+    a(N_);
+    for (auto* v : {&x_, &v_, &acc_, &f_, &x0_}) a(*v);
+    for (auto* v : {&w_, &alpha_, &tq_}) a(*v);
+    for (auto* v : {&R_, &m_, &minv_, &iinv_}) a(*v);
+    a(mat_);
+    a(id_);
+    a(fixed_);
+    a.tag("tdm.lists");
+    a(off_);
+    a(nb_);
+    a(sh_);
+    a(touch_);
+    a(xi_);
+    a(mr_);
+    a(wl_i_);
+    a(wl_w_);
+    a(wl_f_);
+    a(wl_touch_);
+    a(wl_xi_);
+    a(wl_mr_);
+    a(cell_of_);
+    a(cell_start_);
+    a(order_);
+    a(initial_);
+    a.tag("tdm.threads");
+    a(T_);
+    a(lo_);
+    a(hi_);
+    a(wlo_);
+    a(whi_);
+    a(boundary_);
+    a(boundary_list_);
+    a(acc_t_);
+    a.same(loads_t_, "threads");
+    a(last_sample_t_);
+    a.tag("tdm.flows");
+    a(gone_);
+    a(removed_id_);
+    a(n_built_);
+    a.same(clocks_, "inlets");
+    a(next_id_);
+    a(grains_in_);
+    a(mass_in_);
+    a(grains_out_);
+    a(mass_out_);
+    a.tag("tdm.counters");
+    a(particle_steps_);
+    a(steps_);
+    a(rebuilds_);
+    a(pair_begun_);
+    a(wall_begun_);
+    a(build_step_);
+    a(max_rel_);
+    a(max_abs_);
+    a(k_sample_);
+    a(k_snap_);
+    a(k_check_);
+  }
+  void save_checkpoint() {
+    if (!set_.checkpoint || !set_.checkpoint->save) return;
+    StateWriter w;
+    archive(w);
+    set_.checkpoint->save(static_cast<double>(steps_) * dt_, w.bytes);
+  }
 };
 
 // The largest diameter of the run: of the grains at the start and of those the inlets insert.
@@ -917,11 +990,25 @@ RunResult<D> TdmEngine<D>::run() {
   bool want_snap = false;
   for (auto* o : obs_) want_snap = want_snap || o->wants_snapshots();
   want_snap = want_snap && set_.snapshot_interval > 0.0;
-  std::uint64_t k_sample = 1, k_snap = 1;
-  // Whether step n needs the full-step state (a thermo row, a snapshot or the end).
+  std::uint64_t& k_sample = k_sample_;
+  std::uint64_t& k_snap = k_snap_;
+  const double check_every = set_.checkpoint ? set_.checkpoint->interval : 0.0;
+  // Whether step n needs the full-step state (a thermo row, a snapshot, a checkpoint or the end).
+  // (A step with its forces computed apart and one with them fused into the integration give the
+  // same bits: a run with more rows or checkpoints follows the same course.)
   auto due = [&](std::uint64_t n) {
     return n == 0 || n >= nsteps || (set_.thermo_interval > 0.0 && step_of(set_.thermo_interval, k_sample) <= n) ||
-           (want_snap && step_of(set_.snapshot_interval, k_snap) <= n);
+           (want_snap && step_of(set_.snapshot_interval, k_snap) <= n) ||
+           (check_every > 0.0 && step_of(check_every, k_check_) <= n);
+  };
+  // Saves the state at step n when a checkpoint falls due there, the run ends or stops.
+  auto checkpoint = [&](std::uint64_t n, bool last) {
+    bool now = last;
+    while (check_every > 0.0 && n > 0 && step_of(check_every, k_check_) <= n) {
+      now = true;
+      ++k_check_;
+    }
+    if (now) save_checkpoint();
   };
   auto emit = [&](std::uint64_t n, bool last) {
     const double t = static_cast<double>(n) * dt_;
@@ -973,8 +1060,18 @@ RunResult<D> TdmEngine<D>::run() {
     if ((steps_ & 15) == 0 && set_.stop && set_.stop->load(std::memory_order_relaxed)) stopping_ = true;
   };
 
-  if (!clocks_.empty()) insert_due();  // the grains due at t = 0
-  if (N_ > 0 || !clocks_.empty()) {
+  const bool resuming = set_.checkpoint && set_.checkpoint->resume;
+  if (resuming) {
+    // Continue a saved state (positions and forces of a whole step): that step's rows are written
+    // now unless the saved run had written them.
+    StateReader r(*set_.checkpoint->resume);
+    archive(r);
+    if (!r.done()) throw StateError("the engine state is longer than this scene's (a checkpoint of another scene)");
+    emit(steps_, steps_ >= nsteps);
+  } else if (!clocks_.empty()) {
+    insert_due();  // the grains due at t = 0
+  }
+  if (!resuming && (N_ > 0 || !clocks_.empty())) {
     rebuild();
     if (status_ == "ok") {
       // Forces at t = 0 give a(0) only: contacts that exist at t = 0 keep their springs unstretched.
@@ -1020,6 +1117,7 @@ RunResult<D> TdmEngine<D>::run() {
       status_ = "interrupted";
       message_ = fmt::format("stopped on request at t = {:.17g}", steps_ * dt_);
     }
+    if (status_ == "ok" || status_ == "interrupted") checkpoint(steps_, steps_ >= nsteps || status_ != "ok");
     emit(steps_, steps_ >= nsteps || status_ != "ok");
   }
   if (status_ == "ok" && steps_ < nsteps) {

@@ -299,6 +299,21 @@ class CellGrid {
   }
 
   // The image shifts by index (sum_k (s_k + 1) 3^k, s_k in {-1, 0, 1}): s_k times the axis length.
+  // Checkpoints (engine/state_archive.hpp): a grid rebuilt as the run goes (the hybrid's soft grid).
+  template <class A>
+  void archive(A& a) {
+    a(lo_);
+    a(len_);
+    a(w_);
+    a(periodic_);
+    a(n_);
+    a(stride_);
+    a(cells_);
+    a(hashed_);
+    a(mask_);
+    a(offsets_all_);
+    for (auto& o : offsets_layer_) a(o);
+  }
   std::array<Vec<D>, kStencil> shift_table() const {
     std::array<Vec<D>, kStencil> t;
     for (int s = 0; s < kStencil; ++s) {

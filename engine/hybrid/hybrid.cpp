@@ -256,6 +256,7 @@ class HybridEngine final : public edm::EdmCore<D, CalendarQueue, HybridEngine<D>
           set_.stop->load(std::memory_order_relaxed)) {
         status_ = "interrupted";
         message_ = fmt::format("stopped on request at t = {:.17g}", t);
+        this->save_checkpoint(t);  // the next substep is already scheduled
       }
       return status_.empty();
     });
@@ -1500,6 +1501,57 @@ class HybridEngine final : public edm::EdmCore<D, CalendarQueue, HybridEngine<D>
     for (const auto& e : we_) t.contacts += e.touch;
     t.contacts += pe_sleep_.size() + we_sleep_.size();
     t.threads = 1;
+  }
+
+  // Checkpoints (engine/state_archive.hpp): the core's state, then everything of the soft set,
+  // the switching and rest rules and the substep clock (what setup makes from the scene and the
+  // settings is made again; the walls are refreshed at every substep).
+  template <class A>
+  void archive(A& a) {
+    Base::archive_core(a);
+    a.tag("hybrid.clock");
+    a.check(h_, "the substep");
+    a(build_t_);
+    a(clock_);
+    a(clock_t0_);
+    a(clock_n_);
+    a(dirty_);
+    a(purge_);
+    a(asleep_);
+    a(hstats_soft_begun_);
+    a(hstats_);
+    a.tag("hybrid.soft");
+    for (auto* v : {&vh_, &acc_, &f_, &x0_, &cblo_, &cbhi_, &fz_base_, &fz_mix_}) a(*v);
+    for (auto* v : {&wh_, &alpha_, &tq_, &wmr_, &fz_tmix_, &fz_tbase_}) a(*v);
+    for (auto* v : {&minv_, &iinv_, &last_contact_, &iface_next_, &rate_t0_, &fz_scale_}) a(*v);
+    for (auto* v : {&quiet_checks_, &slot_, &soft_, &pending_, &iface_, &group_, &gslot_, &gstart_, &gfill_, &woken_,
+                    &fresh_, &asleep_list_, &asleep_slot_, &fixed_list_, &freed_, &unsupported_, &sg_start_,
+                    &sg_items_, &sg_cell_, &sg_part_, &sg_fill_, &watched_})
+      a(*v);
+    for (auto* v : {&pending_reason_, &touching_, &near_, &mode_, &iface_flag_, &cand_, &joined_by_, &fz_cand_,
+                    &fz_lost_, &watch_flag_})
+      a(*v);
+    for (auto* v : {&begun_n_, &held_, &gadj_}) a(*v);
+    a(moved_);
+    a(moved_w_);
+    a(near_pairs_);
+    a(leaving_);
+    a(vsoft_max_);
+    a.tag("hybrid.contacts");
+    a(springs_);
+    a(pairs_);
+    a(pe_sleep_);
+    a(we_);
+    a(we_sleep_);
+    a(wall_t_);
+    a.tag("hybrid.rules");
+    a(switch_);
+    a(sleep_every_);
+    a(since_sleep_check_);
+    a(cost_every_);
+    a(since_cost_check_);
+    a(sg_w_);
+    a(sgrid_);
   }
 
   // Hybrid state.

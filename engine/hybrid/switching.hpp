@@ -47,6 +47,17 @@ class SwitchRule {
     recent_t_.assign(n, {-kNever, -kNever});
   }
   const Params& params() const { return p_; }
+  // Checkpoints (engine/state_archive.hpp): the per-particle histories (the parameters come from
+  // the settings).
+  template <class A>
+  void archive(A& a) {
+    a(rapid_);
+    a(ema_);
+    a(prev_);
+    a(seen_);
+    a(recent_);
+    a(recent_t_);
+  }
 
   // A pair collision of hard particles i and j at t; last_i, last_j: the times of their previous
   // collisions (-infinity if none); contact_time(): t_c of this impact (called only when needed).

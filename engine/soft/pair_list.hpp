@@ -121,6 +121,20 @@ class PairList {
                            rolling_ ? mr.data() : nullptr);
   }
 
+  // Checkpoints (engine/state_archive.hpp).
+  template <class A>
+  void archive(A& a) {
+    a(owner);
+    a(off);
+    a(nb);
+    a(c);
+    a(sh);
+    a(touch);
+    a(xi);
+    a(mr);
+    a(open_);
+  }
+
  private:
   std::uint32_t open_ = 0;
   bool rolling_ = false;

@@ -34,6 +34,12 @@ class SpringMemory {
     std::sort(walls_.begin(), walls_.end(), by_key);
   }
   bool empty() const { return pairs_.empty() && walls_.empty(); }
+  // Checkpoints (engine/state_archive.hpp).
+  template <class A>
+  void archive(A& a) {
+    a(pairs_);
+    a(walls_);
+  }
   // Whether the pair (a, b) was touching; then xi (and *mr) = its springs oriented for a.
   bool recall_pair(std::uint32_t a, std::uint32_t b, Vec<D>& xi, Spin<D>* mr = nullptr) const {
     const Entry* e = find(pairs_, a < b ? key(a, b) : key(b, a));

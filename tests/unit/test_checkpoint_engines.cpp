@@ -264,7 +264,59 @@ void check_case(const std::string& name, const std::vector<std::string>& overrid
 
 TEST(CheckpointEngines, TdmCasesResumeBitForBit) {
   check_case("heap.toml", {"run.end_time=0.8", "output.thermo_interval=0.01"}, 7);
-  check_case("drum.toml", {"run.end_time=0.1", "output.thermo_interval=0.002"}, 8);
+  check_case("drum.toml", {"run.end_time=0.04", "output.thermo_interval=0.001"}, 8);
+}
+
+// The small pour of cases/pour_settle.toml: 300 beads land and begin to sleep by t = 0.5.
+const std::vector<std::string> kSmallPour = {"run.end_time=0.5", "output.thermo_interval=0.01",
+                                             "particles.beads.count=300",
+                                             "particles.beads.region.upper=[0.15,0.15,0.25]"};
+
+TEST(CheckpointEngines, HybridCasesResumeBitForBit) {
+  // Settling under gravity; a bed on an oscillating floor; a 2D U-tube.
+  check_case("pour_settle.toml", kSmallPour, 9);
+  check_case("vibrated_bed.toml", {"run.end_time=0.6", "output.thermo_interval=0.01"}, 10);
+  check_case("u_tube_2d.toml", {"run.end_time=0.15", "output.thermo_interval=0.005"}, 11);
+}
+
+// Checkpoints every interval in a pour: resumed mid-settling, the sleepers and springs carry on
+// (the same switches, no grain turned soft again "by overlap", the same final modes).
+TEST(CheckpointEngines, HybridPourResumedMidSettling) {
+  const Scene sc = load_scene(test::kCasesDir + "pour_settle.toml", kSmallPour);
+  const auto& sys = std::get<System<3>>(sc.system);
+  Trace<3> plain;
+  const RunResult<3> ref = run_case<3>(sc, sys, nullptr, nullptr, &plain);
+  ASSERT_GT(ref.hybrid.slept, 0u);
+  std::vector<std::vector<std::uint8_t>> states;
+  Trace<3> with;
+  CheckpointHooks every;
+  every.interval = 0.1;
+  every.save = [&](double, const std::vector<std::uint8_t>& st) {
+    states.push_back(st);
+    with.mark();
+  };
+  const RunResult<3> r = run_case<3>(sc, sys, &every, nullptr, &with);
+  ASSERT_EQ(states.size(), 5u);  // 0.1 ... 0.4, and the end
+  EXPECT_EQ(with.values, plain.values);
+  expect_same_result(r, ref);
+  for (std::size_t k : {std::size_t{2}, std::size_t{3}}) {
+    SCOPED_TRACE(::testing::Message() << "checkpoint " << k);
+    Trace<3> rest;
+    CheckpointHooks resume;
+    resume.interval = every.interval;
+    resume.resume = &states[k];
+    const RunResult<3> cont = run_case<3>(sc, sys, &resume, nullptr, &rest);
+    std::vector<double> joined(plain.values.begin(), plain.values.begin() + static_cast<std::ptrdiff_t>(with.cuts[k]));
+    joined.insert(joined.end(), rest.values.begin(), rest.values.end());
+    EXPECT_EQ(joined, plain.values);
+    expect_same_result(cont, ref);
+    EXPECT_EQ(cont.hybrid.slept, ref.hybrid.slept);
+    EXPECT_EQ(cont.hybrid.woken, ref.hybrid.woken);
+  }
+}
+
+TEST(CheckpointEngines, EdmCasesResumeBitForBit) {
+  check_case("rough_gas.toml", {"run.end_time=20", "output.thermo_interval=1"}, 12);
 }
 
 }  // namespace

@@ -97,6 +97,7 @@ struct RunResult {
   std::vector<Vec<D>> x, v;
   std::vector<double> radius;
   std::vector<Spin<D>> w;             // empty when the system had no spins (all zero)
+  std::vector<int> material;          // per row: index into System::materials
   SoftStats soft;                     // TDM and hybrid runs
   HybridStats hybrid;                 // hybrid runs
   std::vector<std::uint8_t> mode;     // hybrid: final mode per particle (0 hard, 1 soft, 3 asleep, 4 fixed)
@@ -128,6 +129,7 @@ void keep_present(State& s, const std::vector<std::uint8_t>& gone) {
     keep(s.w, k);
     keep(s.radius, k);
     keep(s.mode, k);
+    if constexpr (requires { s.material; }) keep(s.material, k);
     if constexpr (requires { s.cluster; }) keep(s.cluster, k);
     ++m;
   }
@@ -136,6 +138,7 @@ void keep_present(State& s, const std::vector<std::uint8_t>& gone) {
   cut(s.w);
   cut(s.radius);
   cut(s.mode);
+  if constexpr (requires { s.material; }) cut(s.material);
   if constexpr (requires { s.cluster; }) cut(s.cluster);
 }
 

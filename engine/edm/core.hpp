@@ -301,6 +301,8 @@ class EdmCore {
     queue_.reset();
     free_array(head_);
     free_array(next_);
+    res.material.resize(N_);
+    for (int i = 0; i < N_; ++i) res.material[i] = cold_[i].mat;
     free_array(cold_);
     res.x.resize(N_);
     res.v.resize(N_);

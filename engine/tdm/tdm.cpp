@@ -1136,6 +1136,12 @@ RunResult<D> TdmEngine<D>::run() {
   res.v = std::move(last.v);
   res.w = std::move(last.w);
   res.radius = std::move(last.radius);
+  {  // materials by id, then per row
+    std::vector<int> by_id(N0_, 0);
+    for (std::size_t i = 0; i < N_; ++i) by_id[id_[i]] = mat_[i];
+    res.material.resize(res.x.size());
+    for (std::size_t k = 0; k < res.x.size(); ++k) res.material[k] = by_id[res.id.empty() ? k : res.id[k]];
+  }
   res.grains_out = grains_out_;
   res.mass_out = mass_out_;
   res.grains_in = grains_in_;

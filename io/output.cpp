@@ -699,30 +699,32 @@ template class VtkSnapshotWriter<3>;
 // ---- final_state.csv --------------------------------------------------------------------------
 
 template <int D>
-void write_final_state(const std::string& path, const RunResult<D>& res) {
+void write_final_state(const std::string& path, const RunResult<D>& res, const StateLabels& labels) {
   const auto& radius = res.radius;
   CheckedFile f(path, "w");
   if constexpr (D == 3)
-    f.puts("id,x,y,z,vx,vy,vz,wx,wy,wz,radius\n");
+    f.puts("id,x,y,z,vx,vy,vz,wx,wy,wz,radius,group,material\n");
   else
-    f.puts("id,x,y,vx,vy,w,radius\n");
+    f.puts("id,x,y,vx,vy,w,radius,group,material\n");
   for (std::size_t i = 0; i < res.x.size(); ++i) {
     const auto& x = res.x[i];
     const auto& v = res.v[i];
     const Spin<D> w = res.w.empty() ? Spin<D>::Zero() : res.w[i];
+    const std::size_t id = res.id.empty() ? i : std::size_t{res.id[i]};
+    const std::string& group = labels.group_names.at(static_cast<std::size_t>(labels.group.at(id)));
+    const std::string& material = labels.materials.at(res.material.empty() ? 0 : static_cast<std::size_t>(res.material[i]));
     if constexpr (D == 3)
-      f.print("{},{:.17g},{:.17g},{:.17g},{:.17g},{:.17g},{:.17g},{:.17g},{:.17g},{:.17g},{:.17g}\n",
-                 res.id.empty() ? i : std::size_t{res.id[i]}, x[0], x[1], x[2], v[0], v[1], v[2], w[0], w[1], w[2],
-                 radius[i]);
+      f.print("{},{:.17g},{:.17g},{:.17g},{:.17g},{:.17g},{:.17g},{:.17g},{:.17g},{:.17g},{:.17g},{},{}\n", id, x[0],
+              x[1], x[2], v[0], v[1], v[2], w[0], w[1], w[2], radius[i], group, material);
     else
-      f.print("{},{:.17g},{:.17g},{:.17g},{:.17g},{:.17g},{:.17g}\n", res.id.empty() ? i : std::size_t{res.id[i]},
-                 x[0], x[1], v[0], v[1], w[0], radius[i]);
+      f.print("{},{:.17g},{:.17g},{:.17g},{:.17g},{:.17g},{:.17g},{},{}\n", id, x[0], x[1], v[0], v[1], w[0], radius[i],
+              group, material);
   }
   f.close();
 }
 
-template void write_final_state<2>(const std::string&, const RunResult<2>&);
-template void write_final_state<3>(const std::string&, const RunResult<3>&);
+template void write_final_state<2>(const std::string&, const RunResult<2>&, const StateLabels&);
+template void write_final_state<3>(const std::string&, const RunResult<3>&, const StateLabels&);
 
 // ---- summary.json -----------------------------------------------------------------------------
 

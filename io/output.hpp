@@ -222,8 +222,16 @@ class VtkSnapshotWriter final : public Observer<D> {
   std::vector<std::pair<double, std::vector<std::string>>> written_;
 };
 
+// The words of final_state.csv's last two columns: group[id] indexes group_names for every particle
+// id (an inlet's grains: "inlet.NAME", io/run.cpp), materials[m] names material m (RunResult::material).
+struct StateLabels {
+  std::vector<std::string> group_names;
+  std::vector<int> group;
+  std::vector<std::string> materials;
+};
+
 template <int D>
-void write_final_state(const std::string& path, const RunResult<D>& result);
+void write_final_state(const std::string& path, const RunResult<D>& result, const StateLabels& labels);
 
 struct SummaryInfo {
   std::string scene;

@@ -263,7 +263,17 @@ RunOutcome run_system(const Scene& scene, const System<D>& sys, const std::strin
   if (log) log->close();
   if (outflow) outflow->close();
   thermo.close();
-  write_final_state<D>(out + "/final_state.csv", res);
+  // final_state.csv names each grain's group and material; an inlet's grains (the ids after the
+  // initial ones, inlet by inlet) form the group "inlet.NAME".
+  StateLabels labels;
+  labels.group_names = scene.group_names;
+  labels.group = scene.group;
+  for (const Inlet<D>& in : sys.inlets) {
+    labels.group.insert(labels.group.end(), in.slots(scene.end_time), static_cast<int>(labels.group_names.size()));
+    labels.group_names.push_back("inlet." + in.name);
+  }
+  for (const Material& m : sys.materials) labels.materials.push_back(m.name);
+  write_final_state<D>(out + "/final_state.csv", res, labels);
   SummaryInfo info;
   info.scene = scene.path;
   info.method = method_name(scene.method);

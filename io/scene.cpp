@@ -14,6 +14,7 @@
 #include <sstream>
 
 #include <fmt/format.h>
+#include <fmt/ranges.h>
 
 #include "contact/cone.hpp"
 #include "contact/cylinder.hpp"
@@ -179,10 +180,12 @@ struct Group {
   Group(std::string n, TableReader t) : name(std::move(n)), table(std::move(t)) {}
   std::string name;
   TableReader table;
-  int material = 0;
+  int material = 0;         // -1: a file group whose material column gives each grain's
+  std::vector<int> mat;     // then: per particle (empty: all `material`)
   bool from_file = false;
   std::string file_value;   // as written in the scene
   std::string file_path;    // resolved
+  std::optional<std::string> file_group;  // file_group: the rows of this group only
   // Generated groups.
   double rmin = 0.0, rmax = 0.0;
   std::uint64_t count = 0;
@@ -197,6 +200,8 @@ struct Group {
   std::vector<Spin<D>> w;
   std::vector<double> r;
   std::vector<std::size_t> line;  // file groups: CSV line of each particle
+
+  int material_of(std::size_t i) const { return mat.empty() ? material : mat[i]; }
 };
 
 template <int D>
@@ -220,9 +225,13 @@ struct Builder {
   }
 
   void read_group(const std::string& name, const TableReader& t) {
-    t.allow({"material", "file", "radius", "count", "arrangement", "region", "temperature", "velocity", "fixed"});
+    t.allow({"material", "file", "file_group", "radius", "count", "arrangement", "region", "temperature",
+             "velocity", "fixed"});
     Group<D> g(name, t);
-    g.material = material_index(t, sys.materials);
+    // A file with a material column may give each grain's material (read_file).
+    g.material = t.has("file") && !t.has("material") ? -1 : material_index(t, sys.materials);
+    if (t.has("file_group") && !t.has("file"))
+      t.fail("file_group", "needs file (it picks the rows of a particle file by its group column)", t.need("file_group"));
     g.fixed = t.boolean_or("fixed", false);
     if (g.fixed) {
       for (const char* k : {"velocity", "temperature"}) {
@@ -238,6 +247,7 @@ struct Builder {
       fs::path p(g.file_value);
       if (p.is_relative()) p = base_dir / p;
       g.file_path = p.lexically_normal().string();
+      if (t.has("file_group")) g.file_group = t.string("file_group");
       read_file(g);
       if (g.fixed) {  // the file's velocity and spin columns describe motion a fixed grain has not
         g.v.assign(g.v.size(), Vec<D>::Zero());
@@ -265,7 +275,7 @@ struct Builder {
                  quote(g.file_value));
     }
     try {
-      csv = read_csv(g.file_path);
+      csv = read_csv(g.file_path, {"group", "material"});
     } catch (const CsvError& e) {
       fail_got(file, t.key("file"), fmt::format("{}: {}", g.file_path, e.what()), quote(g.file_value));
     }
@@ -284,14 +294,16 @@ struct Builder {
     std::map<std::string, std::size_t> col;
     for (std::size_t c = 0; c < csv.columns.size(); ++c) {
       const std::string& name = csv.columns[c];
-      // "id" (as written in final_state.csv) is accepted and ignored: ids follow the file order.
+      // "id" (as written in final_state.csv) is accepted and ignored: ids follow the file order;
+      // "group" and "material" are words (below).
       const bool known = std::find(required.begin(), required.end(), name) != required.end() ||
-                         std::find(optional.begin(), optional.end(), name) != optional.end() || name == "id";
+                         std::find(optional.begin(), optional.end(), name) != optional.end() || name == "id" ||
+                         csv.text.count(name);
       if (!known) {
         std::string allowed;
         for (const auto& a : required) allowed += (allowed.empty() ? "" : ",") + a;
         for (const auto& a : optional) allowed += "," + a;
-        allowed += ",id";
+        allowed += ",id,group,material";
         bad(fmt::format("unknown column '{}' (columns of a {}D particle file: {})", name, D, allowed));
       }
       col[name] = c;
@@ -300,15 +312,61 @@ struct Builder {
       if (!col.count(name)) bad(fmt::format("missing column '{}'", name));
     }
     if (csv.rows.empty()) bad("no particles (the file has a header but no rows)");
-    const std::size_t n = csv.rows.size();
+    // The rows read: all, or those whose group is file_group (a final_state.csv of a multi-group run).
+    std::vector<std::size_t> rows;
+    const auto groups_col = csv.text.find("group");
+    if (g.file_group) {
+      if (groups_col == csv.text.end())
+        t.fail("file_group", fmt::format("{} has no group column to pick rows by", g.file_value), t.need("file_group"));
+      std::vector<std::string> seen;
+      for (std::size_t i = 0; i < csv.rows.size(); ++i) {
+        const std::string& w = groups_col->second[i];
+        if (w == *g.file_group) rows.push_back(i);
+        if (seen.size() < 8 && std::find(seen.begin(), seen.end(), w) == seen.end()) seen.push_back(w);
+      }
+      if (rows.empty())
+        t.fail("file_group", fmt::format("no row of {} has this group (it has: {})", g.file_value, fmt::join(seen, ", ")),
+               t.need("file_group"));
+    } else {
+      rows.resize(csv.rows.size());
+      for (std::size_t i = 0; i < rows.size(); ++i) rows[i] = i;
+    }
+    // Materials: a material column must agree with the table's material, or gives each grain's when
+    // the table has none.
+    const auto mats_col = csv.text.find("material");
+    if (g.material < 0 && mats_col == csv.text.end()) g.material = material_index(t, sys.materials);  // missing key
+    if (mats_col != csv.text.end()) {
+      std::map<std::string, int, std::less<>> index;
+      for (std::size_t m = 0; m < sys.materials.size(); ++m) index.emplace(sys.materials[m].name, static_cast<int>(m));
+      if (g.material < 0) g.mat.resize(rows.size());
+      for (std::size_t i = 0; i < rows.size(); ++i) {
+        const std::string& w = mats_col->second[rows[i]];
+        const auto it = index.find(w);
+        const auto row = [&] {
+          return fmt::format("particles.{}[{}] ({} line {})", g.name, i, g.file_value, csv.lines[rows[i]]);
+        };
+        if (it == index.end()) {
+          std::string known;
+          for (const auto& m : sys.materials) known += (known.empty() ? "" : ", ") + m.name;
+          bad(fmt::format("{} has material '{}': no such material (defined: {})", row(), w, known));
+        }
+        if (g.material >= 0 && it->second != g.material)
+          bad(fmt::format("{} has material '{}' but {} is '{}'", row(), w, t.key("material"),
+                          sys.materials[static_cast<std::size_t>(g.material)].name));
+        if (g.material < 0) g.mat[i] = it->second;
+      }
+      if (g.material < 0) g.material = g.mat[0];
+    }
+    const std::size_t n = rows.size();
     check_grains(t, "file", planned, static_cast<double>(n), "the file gives");
     g.x.resize(n);
     g.v.resize(n);
     g.w.assign(n, Spin<D>::Zero());
     g.r.resize(n);
-    g.line = csv.lines;
+    g.line.resize(n);
     for (std::size_t i = 0; i < n; ++i) {
-      const auto& row = csv.rows[i];
+      const auto& row = csv.rows[rows[i]];
+      g.line[i] = csv.lines[rows[i]];
       for (int k = 0; k < D; ++k) {
         g.x[i][k] = row[col.at(kAxis[k])];
         g.v[i][k] = row[col.at(fmt::format("v{}", kAxis[k]))];
@@ -321,12 +379,12 @@ struct Builder {
       if (!(g.r[i] > 0.0)) {
         fail_got(file, t.key("file"),
                  fmt::format("particles.{}[{}] ({} line {}) has radius {} (must be > 0)", g.name, i, g.file_value,
-                             csv.lines[i], g.r[i]),
+                             g.line[i], g.r[i]),
                  quote(g.file_value));
       }
       if (const std::string p = radius_problem<D>(g.r[i], sys); !p.empty())
         fail_got(file, t.key("file"),
-                 fmt::format("particles.{}[{}] ({} line {}): {}", g.name, i, g.file_value, csv.lines[i], p),
+                 fmt::format("particles.{}[{}] ({} line {}): {}", g.name, i, g.file_value, g.line[i], p),
                  quote(g.file_value));
       for (int k = 0; k < D; ++k) {
         const double lo = sys.lower[k], hi = sys.upper[k], xk = g.x[i][k];
@@ -337,7 +395,7 @@ struct Builder {
           fail_got(file, t.key("file"),
                    fmt::format("particles.{}[{}] ({} line {}) at {} with radius {} is outside the domain along {} "
                                "(domain [{}, {}]{})",
-                               g.name, i, g.file_value, csv.lines[i], vec_str<D>(g.x[i]), g.r[i], kAxis[k], lo, hi,
+                               g.name, i, g.file_value, g.line[i], vec_str<D>(g.x[i]), g.r[i], kAxis[k], lo, hi,
                                sys.periodic[k] ? ", periodic: the centre must lie inside"
                                                : ": the particle must lie entirely inside"),
                    quote(g.file_value));
@@ -432,7 +490,7 @@ struct Builder {
 
   std::vector<double> masses(const Group<D>& g) const {
     std::vector<double> m(g.r.size());
-    for (std::size_t i = 0; i < m.size(); ++i) m[i] = sys.materials[g.material].density * ball_volume<D>(g.r[i]);
+    for (std::size_t i = 0; i < m.size(); ++i) m[i] = sys.materials[g.material_of(i)].density * ball_volume<D>(g.r[i]);
     return m;
   }
 
@@ -1062,7 +1120,7 @@ void build_system(const TableReader& top, const TableReader& run, const fs::path
       sys.v.push_back(g.v[i]);
       sys.w.push_back(g.w[i]);
       sys.radius.push_back(g.r[i]);
-      sys.material.push_back(g.material);
+      sys.material.push_back(g.material_of(i));
       if (any_fixed) sys.fixed.push_back(g.fixed ? 1 : 0);
       scene.group.push_back(static_cast<int>(gi));
     }

@@ -8,6 +8,7 @@
 #include <cstring>
 #include <filesystem>
 #include <fstream>
+#include <limits>
 #include <sstream>
 #include <string_view>
 
@@ -37,8 +38,9 @@ bool parse_double(std::string_view s, double& v) {
 
 }  // namespace
 
-CsvTable parse_csv(const std::string& text) {
+CsvTable parse_csv(const std::string& text, const std::vector<std::string>& text_columns) {
   CsvTable t;
+  std::vector<std::vector<std::string>*> words;  // per column: its words (text columns), else null
   bool have_header = false;
   std::size_t line_no = 0;
   std::string_view rest(text);
@@ -58,6 +60,10 @@ CsvTable parse_csv(const std::string& text) {
         }
         t.columns.emplace_back(f);
       }
+      for (const auto& c : t.columns) {
+        const bool is_text = std::find(text_columns.begin(), text_columns.end(), c) != text_columns.end();
+        words.push_back(is_text ? &t.text[c] : nullptr);
+      }
       have_header = true;
       continue;
     }
@@ -67,6 +73,12 @@ CsvTable parse_csv(const std::string& text) {
     }
     std::vector<double> row(fields.size());
     for (std::size_t c = 0; c < fields.size(); ++c) {
+      if (words[c]) {
+        if (fields[c].empty()) throw CsvError(fmt::format("line {}, column '{}': empty", line_no, t.columns[c]));
+        words[c]->emplace_back(fields[c]);
+        row[c] = std::numeric_limits<double>::quiet_NaN();
+        continue;
+      }
       if (!parse_double(fields[c], row[c])) {
         throw CsvError(fmt::format("line {}, column '{}': not a finite number (got \"{}\")", line_no,
                                    t.columns[c], fields[c]));
@@ -79,7 +91,7 @@ CsvTable parse_csv(const std::string& text) {
   return t;
 }
 
-CsvTable read_csv(const std::string& path) {
+CsvTable read_csv(const std::string& path, const std::vector<std::string>& text_columns) {
   std::error_code ec;
   if (std::filesystem::is_directory(path, ec)) throw CsvError("cannot read particle file: it is a directory");
   std::ifstream in(path, std::ios::binary);
@@ -87,7 +99,7 @@ CsvTable read_csv(const std::string& path) {
   std::ostringstream ss;
   ss << in.rdbuf();
   if (in.bad()) throw CsvError("cannot read particle file: read error");
-  return parse_csv(ss.str());
+  return parse_csv(ss.str(), text_columns);
 }
 
 }  // namespace matep::scene_detail

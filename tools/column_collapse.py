@@ -53,8 +53,9 @@ def published(a: float) -> float:
 
 
 def read_state(path: Path):
+    """The rows of a particle file or final_state.csv (its group and material columns are words)."""
     with open(path) as f:
-        return [{k: float(v) for k, v in row.items()} for row in csv.DictReader(f)]
+        return [{k: v if k in ("group", "material") else float(v) for k, v in row.items()} for row in csv.DictReader(f)]
 
 
 def column_height(grains, li: float = L_I) -> float:

@@ -79,7 +79,7 @@ TEST(Cli, RunWritesEveryOutputWithTheDocumentedHeaders) {
             "time,kinetic_energy,rotational_energy,potential_energy,temperature,collisions,pressure,elastic_energy,soft");
   // One row at t = 0 and one per interval (0.5) up to end_time = 1: header + 3 rows.
   EXPECT_EQ(std::count(thermo.begin(), thermo.end(), '\n'), 4);
-  EXPECT_EQ(first_line(slurp(d / "final_state.csv")), "id,x,y,z,vx,vy,vz,wx,wy,wz,radius");
+  EXPECT_EQ(first_line(slurp(d / "final_state.csv")), "id,x,y,z,vx,vy,vz,wx,wy,wz,radius,group,material");
   const std::string summary = slurp(d / "summary.json");
   EXPECT_NE(summary.find("\"status\": \"ok\""), std::string::npos);
   EXPECT_NE(summary.find("\"end_time\": 1,"), std::string::npos) << summary;  // --set took effect
@@ -110,7 +110,7 @@ TEST(Cli, TwoDimensionalFinalStateHeader) {
   const fs::path d = tmpdir("run2d");
   const Result r = sh("run " + kCases + "disks_in_a_box.toml --set run.end_time=0.2 --out " + d.string());
   ASSERT_EQ(r.code, 0) << r.out;
-  EXPECT_EQ(first_line(slurp(d / "final_state.csv")), "id,x,y,vx,vy,w,radius");
+  EXPECT_EQ(first_line(slurp(d / "final_state.csv")), "id,x,y,vx,vy,w,radius,group,material");
   fs::remove_all(d);
 }
 
@@ -287,12 +287,12 @@ TEST(Cli, VtkSnapshotsAndTheirTimeSeriesReadBack) {
   EXPECT_EQ(ids[100], 100.0);
   std::istringstream fin(slurp(d / "final_state.csv"));
   std::string line;
-  std::getline(fin, line);  // header id,x,y,z,vx,vy,vz,wx,wy,wz,radius
+  std::getline(fin, line);  // header id,x,y,z,vx,vy,vz,wx,wy,wz,radius,group,material
   for (std::size_t i = 0; std::getline(fin, line); ++i) {
     std::vector<double> f;
     std::istringstream ls(line);
     std::string cell;
-    while (std::getline(ls, cell, ',')) f.push_back(std::stod(cell));
+    while (f.size() < 11 && std::getline(ls, cell, ',')) f.push_back(std::stod(cell));
     ASSERT_EQ(f.size(), 11u);
     for (int k = 0; k < 3; ++k) {
       EXPECT_EQ(pos[3 * i + k], f[1 + k]) << "particle " << i;

@@ -1,21 +1,25 @@
-// The scene reader and the CSV particle reader under the mutation fuzzer (tests/fuzz/fuzz_driver.hpp):
-// every input must load or be refused with SceneError / IoError / std::invalid_argument (CSV:
-// CsvError); never a crash, a hang (> 2 s) or more than 1 GiB. The corpus is tests/fuzz/corpus/
-// (small scenes from cases/ and tests/data, and each input that once broke a reader).
+// The scene reader, the CSV particle reader and the event-log reader under the mutation fuzzer
+// (tests/fuzz/fuzz_driver.hpp): every input must load or be refused with SceneError / IoError /
+// std::invalid_argument (CSV: CsvError; events.bin: IoError); never a crash, a hang (> 2 s) or more
+// than 1 GiB. The corpus is tests/fuzz/corpus/ (small scenes from cases/ and tests/data, small
+// event logs made by tests/fuzz/make_event_corpus.py, and each input that once broke a reader).
 //
 // A short run by default; MATEP_FUZZ_EXECS=N (per target) and MATEP_FUZZ_SECONDS=S run longer,
 // MATEP_FUZZ_SEED=K another sequence. Each run prints its executions per second. A failing input is
 // written to MATEP_FUZZ_CRASH_DIR (default: the system's temporary folder) for the corpus.
 #include <gtest/gtest.h>
 
+#include <sys/mman.h>
 #include <unistd.h>
 
 #include <cstdlib>
+#include <cstring>
 #include <filesystem>
 #include <fstream>
 #include <stdexcept>
 #include <string>
 
+#include "io/log_tools.hpp"
 #include "io/output.hpp"
 #include "io/scene.hpp"
 #include "io/scene_csv.hpp"
@@ -56,6 +60,64 @@ void csv_target(const std::string& text) {
   }
 }
 
+// The event-log reader reads from a file: each input is written to this one, an in-memory file
+// (memfd; a file on disk costs milliseconds an input to truncate) that the forked workers inherit
+// and open as /proc/self/fd/N, then read record by record, by random access, and by `matep log
+// stats` and `verify`.
+int g_events_fd = -1;
+std::string g_events_path;
+
+// Half of the inputs (by a bit of their CRC) get their header and block checksums recomputed, so
+// that a mutation reaches the header and record checks instead of stopping at the first checksum.
+void fix_checksums(std::string& s) {
+  auto u32 = [&](std::size_t at) {
+    std::uint32_t v;
+    std::memcpy(&v, s.data() + at, 4);
+    return v;
+  };
+  auto put = [&](std::size_t at, std::uint32_t v) { std::memcpy(s.data() + at, &v, 4); };
+  if (s.size() < matep::kEventLogHeaderSize || s.compare(0, 8, matep::kEventLogMagic, 8) != 0 || u32(8) != 3) return;
+  put(60, matep::crc32c(s.data(), 60));
+  const std::size_t k = u32(32), rec = matep::kEventRecordSize, tr = matep::kEventBlockTrailerSize;
+  if (k == 0 || k > matep::kEventLogMaxBlockRecords) return;
+  for (std::size_t off = matep::kEventLogHeaderSize; off + tr <= s.size();) {
+    std::size_t n = k;  // a full block, or the last one (what is left)
+    if (off + k * rec + tr > s.size() || s.compare(off + k * rec, 8, matep::kEventBlockMagic, 8) != 0)
+      n = (s.size() - off - tr) / rec;
+    const std::size_t t = off + n * rec;
+    put(t + 24, matep::crc32c(s.data() + t, 24, matep::crc32c(s.data() + off, n * rec)));
+    off = t + tr;
+  }
+}
+
+void events_target(const std::string& input) {
+  std::string bytes = input;
+  if (matep::crc32c(input.data(), input.size()) & 1) fix_checksums(bytes);
+  if (::ftruncate(g_events_fd, 0) != 0 ||
+      ::pwrite(g_events_fd, bytes.data(), bytes.size(), 0) != static_cast<ssize_t>(bytes.size()))
+    throw std::logic_error("cannot write " + g_events_path);  // reported as a failure, not hidden
+  try {
+    matep::EventLogReader r(g_events_path);
+    matep::EventRecord rec;
+    while (r.next(rec)) {
+    }
+    if (r.records() > 0) {
+      r.record_at(0);
+      r.record_at(r.records() / 2);
+      r.record_at(r.records() - 1);
+    }
+  } catch (const matep::IoError&) {
+  }
+  try {
+    matep::compute_log_stats(g_events_path, 16);
+  } catch (const matep::IoError&) {
+  }
+  try {
+    matep::verify_log(g_events_path, nullptr);
+  } catch (const matep::IoError&) {
+  }
+}
+
 // Runs one target over its corpus and fails with each failing input's number, reason and file.
 void fuzz(const std::string& name, std::string_view ext, const matep::fuzz::Target& target, std::uint64_t execs,
           std::uint64_t memory_bytes) {
@@ -93,6 +155,14 @@ TEST(Fuzz, SceneReaderNeverCrashesHangsOrOverallocates) {
 
 TEST(Fuzz, CsvParticleReaderNeverCrashesHangsOrOverallocates) {
   fuzz("csv", ".csv", csv_target, 20 * kShortRun, std::uint64_t{1} << 30);
+}
+
+TEST(Fuzz, EventLogReaderNeverCrashesHangsOrOverallocates) {
+  g_events_fd = ::memfd_create("matep_fuzz_events", 0);
+  ASSERT_GE(g_events_fd, 0) << std::strerror(errno);
+  g_events_path = "/proc/self/fd/" + std::to_string(g_events_fd);
+  fuzz("events", ".bin", events_target, kShortRun / 2, std::uint64_t{1} << 30);
+  ::close(g_events_fd);
 }
 
 // The driver itself: an input is a function of (seed, index), the corpus comes first unchanged, and

@@ -6,6 +6,7 @@
 #include <fmt/format.h>
 
 #include <cerrno>
+#include <cstdint>
 #include <cstdio>
 #include <cstring>
 #include <iterator>
@@ -17,10 +18,25 @@
 
 namespace matep {
 
+std::uint32_t crc32c(const void* data, std::size_t n, std::uint32_t crc);  // io/output.cpp
+
+// What a file held at a checkpoint (io/checkpoint.hpp): its length and the CRC-32C of those bytes.
+struct FileMark {
+  std::uint64_t bytes = 0;
+  std::uint32_t crc = 0;
+  template <class A>
+  void archive(A& a) {
+    a(bytes);
+    a(crc);
+  }
+};
+
 class CheckedFile {
  public:
-  // mode: "w" or "wb". buffer > 0: a stdio buffer of that many bytes (large sequential writers).
-  CheckedFile(std::string path, const char* mode, std::size_t buffer = 0) : path_(std::move(path)) {
+  // mode: "w" or "wb" ("a"/"ab" with `from`: continues a file that holds the bytes of that mark).
+  // buffer > 0: a stdio buffer of that many bytes (large sequential writers).
+  CheckedFile(std::string path, const char* mode, std::size_t buffer = 0, const FileMark& from = {})
+      : path_(std::move(path)), mark_(from) {
     f_ = std::fopen(path_.c_str(), mode);
     if (!f_) throw WriteError(fmt::format("{}: cannot open for writing: {}", path_, std::strerror(errno)));
     if (buffer > 0) {
@@ -39,6 +55,13 @@ class CheckedFile {
 
   void write(const void* p, std::size_t n) {
     if (n > 0 && std::fwrite(p, 1, n, f_) != n) fail();
+    mark_.bytes += n;
+    mark_.crc = crc32c(p, n, mark_.crc);
+  }
+  // Flushed, the file's length and checksum so far.
+  FileMark mark() {
+    flush();
+    return mark_;
   }
   void puts(std::string_view s) { write(s.data(), s.size()); }
   template <class... A>
@@ -69,6 +92,7 @@ class CheckedFile {
     throw WriteError(fmt::format("{}: write failed: {}", path_, err != 0 ? std::strerror(err) : "unknown error"));
   }
   std::string path_;
+  FileMark mark_;
   std::FILE* f_ = nullptr;
   std::vector<char> buffer_;
   fmt::memory_buffer text_;

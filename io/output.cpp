@@ -396,8 +396,31 @@ EventLogEncoder::EventLogEncoder(std::FILE* f, std::string path, std::uint32_t d
   put_u64(h + 24, particles);
   put_u32(h + 32, k_);
   put_u32(h + 60, crc32c(h, 60));
-  if (std::fwrite(h, 1, kEventLogHeaderSize, f_) != kEventLogHeaderSize)
-    throw WriteError(fmt::format("{}: write failed: {}", path_, std::strerror(errno)));
+  put(h, kEventLogHeaderSize);
+}
+
+EventLogEncoder::EventLogEncoder(std::FILE* f, std::string path, const EventLogMark& from, std::uint32_t block_records)
+    : f_(f), path_(std::move(path)), k_(block_records), file_(from.file), total_(from.total),
+      in_block_(static_cast<std::size_t>(from.in_block)) {
+  block_.resize(std::size_t{k_} * kEventRecordSize + kEventBlockTrailerSize);
+  if (from.in_block >= k_ || from.pending.size() != in_block_ * kEventRecordSize)
+    throw IoError(fmt::format("{}: the checkpoint's unfinished block does not fit this log", path_));
+  std::copy(from.pending.begin(), from.pending.end(), block_.begin());
+}
+
+EventLogMark EventLogEncoder::mark() const {
+  EventLogMark m;
+  m.file = file_;
+  m.total = total_;
+  m.in_block = in_block_;
+  m.pending.assign(block_.begin(), block_.begin() + static_cast<std::ptrdiff_t>(in_block_ * kEventRecordSize));
+  return m;
+}
+
+void EventLogEncoder::put(const void* p, std::size_t n) {
+  if (std::fwrite(p, 1, n, f_) != n) throw WriteError(fmt::format("{}: write failed: {}", path_, std::strerror(errno)));
+  file_.bytes += n;
+  file_.crc = crc32c(p, n, file_.crc);
 }
 
 void EventLogEncoder::add(const EventRecord& r) {
@@ -417,8 +440,7 @@ void EventLogEncoder::flush_block(bool last) {
   put_u32(t + 28, 0);
   const std::size_t n = in_block_ * kEventRecordSize + kEventBlockTrailerSize;
   in_block_ = 0;
-  if (std::fwrite(block_.data(), 1, n, f_) != n)
-    throw WriteError(fmt::format("{}: write failed: {}", path_, std::strerror(errno)));
+  put(block_.data(), n);
 }
 
 void EventLogEncoder::finish() {
@@ -434,6 +456,19 @@ EventLogWriter<D>::EventLogWriter(const std::string& path, std::uint64_t particl
   std::setvbuf(f_, nullptr, _IONBF, 0);  // the encoder writes whole blocks
   try {
     enc_ = std::make_unique<EventLogEncoder>(f_, path, D, particles, fixed_grains);
+  } catch (...) {
+    std::fclose(f_);
+    f_ = nullptr;
+    throw;
+  }
+}
+
+template <int D>
+EventLogWriter<D>::EventLogWriter(const std::string& path, const EventLogMark& from) : path_(path) {
+  f_ = open_or_throw(path, "ab");
+  std::setvbuf(f_, nullptr, _IONBF, 0);
+  try {
+    enc_ = std::make_unique<EventLogEncoder>(f_, path, from);
   } catch (...) {
     std::fclose(f_);
     f_ = nullptr;
@@ -525,8 +560,10 @@ template class EventLogWriter<3>;
 // ---- outflow.csv ------------------------------------------------------------------------------
 
 template <int D>
-OutflowCsvWriter<D>::OutflowCsvWriter(const std::string& path, const std::vector<std::string>& outlets)
-    : outlets_(outlets), f_(std::make_unique<CheckedFile>(path, "w")) {
+OutflowCsvWriter<D>::OutflowCsvWriter(const std::string& path, const std::vector<std::string>& outlets,
+                                      const FileMark* resume)
+    : outlets_(outlets), f_(std::make_unique<CheckedFile>(path, resume ? "a" : "w", 0, resume ? *resume : FileMark{})) {
+  if (resume) return;
   f_->puts(D == 3 ? "time,id,outlet,mass,x,y,z,vx,vy,vz\n" : "time,id,outlet,mass,x,y,vx,vy\n");
 }
 
@@ -556,8 +593,11 @@ template class OutflowCsvWriter<3>;
 
 // ---- thermo.csv -------------------------------------------------------------------------------
 
-ThermoCsvWriter::ThermoCsvWriter(const std::string& path, const std::vector<std::string>& walls, int dim, bool flows)
-    : walls_(walls.size()), dim_(dim), flows_(flows), f_(std::make_unique<CheckedFile>(path, "w")) {
+ThermoCsvWriter::ThermoCsvWriter(const std::string& path, const std::vector<std::string>& walls, int dim, bool flows,
+                                 const FileMark* resume)
+    : walls_(walls.size()), dim_(dim), flows_(flows),
+      f_(std::make_unique<CheckedFile>(path, resume ? "a" : "w", 0, resume ? *resume : FileMark{})) {
+  if (resume) return;
   f_->puts("time,kinetic_energy,rotational_energy,potential_energy,temperature,collisions,pressure,elastic_energy,"
            "soft");
   if (flows_) f_->puts(",grains,grains_in,mass_in,grains_out,mass_out");
@@ -678,7 +718,12 @@ void VtkSnapshotWriter<D>::on_snapshot(const Snapshot<D>& snap) {
   std::vector<std::string> files{rel};
   for (std::size_t w = 0; w < walls_.size(); ++w) files.push_back(wall_file(w, snap.time));
   written_.emplace_back(snap.time, std::move(files));
-  // The collection is rewritten whole (to a temporary, then renamed) after every snapshot.
+  write_pvd();
+}
+
+// The collection is rewritten whole (to a temporary, then renamed) after every snapshot.
+template <int D>
+void VtkSnapshotWriter<D>::write_pvd() {
   const std::string pvd = dir_ + "/snapshots.pvd", tmp = pvd + ".tmp";
   CheckedFile c(tmp, "w");
   c.print("<?xml version=\"1.0\"?>\n<VTKFile type=\"Collection\" version=\"0.1\" byte_order=\"LittleEndian\">\n"
@@ -691,6 +736,27 @@ void VtkSnapshotWriter<D>::on_snapshot(const Snapshot<D>& snap) {
   std::error_code ec;
   std::filesystem::rename(tmp, pvd, ec);
   if (ec) throw WriteError(fmt::format("{}: cannot rename into place: {}", pvd, ec.message()));
+}
+
+template <int D>
+typename VtkSnapshotWriter<D>::Mark VtkSnapshotWriter<D>::mark() const {
+  Mark m;
+  for (const auto& [t, files] : written_) {
+    m.times.push_back(t);
+    m.files.push_back(files);
+  }
+  m.static_files = static_file_;
+  return m;
+}
+
+template <int D>
+void VtkSnapshotWriter<D>::resume(const Mark& m) {
+  if (m.static_files.size() != walls_.size() || m.times.size() != m.files.size())
+    throw IoError(fmt::format("{}: the checkpoint's snapshot series does not fit this scene's walls", dir_));
+  written_.clear();
+  for (std::size_t k = 0; k < m.times.size(); ++k) written_.emplace_back(m.times[k], m.files[k]);
+  static_file_ = m.static_files;
+  if (!written_.empty()) write_pvd();
 }
 
 template class VtkSnapshotWriter<2>;

@@ -123,18 +123,40 @@ class EventLogReader {
 
 // Writes the version-3 layout into an open file (the EventLogWriter's and `matep log filter`'s
 // encoder). Every write is checked: IoError names `path` and the OS error.
+// What an event log held at a checkpoint: the bytes written (the header and whole blocks), the
+// records so far and those of the unfinished block.
+struct EventLogMark {
+  FileMark file;
+  std::uint64_t total = 0;
+  std::uint64_t in_block = 0;
+  std::vector<unsigned char> pending;  // in_block records, encoded
+  template <class A>
+  void archive(A& a) {
+    a(file);
+    a(total);
+    a(in_block);
+    a(pending);
+  }
+};
+
 class EventLogEncoder {
  public:
   EventLogEncoder(std::FILE* f, std::string path, std::uint32_t dimension, std::uint64_t particles, bool fixed_grains,
                   std::uint32_t block_records = kEventLogBlockRecords);
+  // Continues a log whose file holds the bytes of `from` (positioned at its end).
+  EventLogEncoder(std::FILE* f, std::string path, const EventLogMark& from,
+                  std::uint32_t block_records = kEventLogBlockRecords);
   void add(const EventRecord& r);
   void finish();  // the last block (0..K-1 records); then nothing more may be added
+  EventLogMark mark() const;
 
  private:
   void flush_block(bool last);
+  void put(const void* p, std::size_t n);
   std::FILE* f_;
   std::string path_;
   std::uint32_t k_;
+  FileMark file_;
   std::uint64_t total_ = 0;
   std::size_t in_block_ = 0;
   bool finished_ = false;
@@ -146,7 +168,10 @@ class EventLogWriter final : public Observer<D> {
  public:
   // Writes version 3; fixed_grains sets the header flag (pair records may have mj = +infinity).
   EventLogWriter(const std::string& path, std::uint64_t particles, bool fixed_grains);
+  // Continues the log at `path`, which holds the bytes of `from` (a checkpoint's).
+  EventLogWriter(const std::string& path, const EventLogMark& from);
   ~EventLogWriter() override;
+  EventLogMark mark() const { return enc_->mark(); }
   bool wants_collisions() const override { return true; }
   void on_collision(const CollisionRecord<D>& rec) override;
   void on_outflow(const OutflowRecord<D>& rec) override;
@@ -167,9 +192,11 @@ class ThermoCsvWriter final : public Observer<2>, public Observer<3> {
   // With flows (a scene with inlets or outlets), each row also gives the grains present, the grains
   // inserted and removed so far and their masses: columns grains, grains_in, mass_in, grains_out,
   // mass_out.
+  // resume: continue a file that holds the bytes of that mark (a checkpoint's; no header).
   explicit ThermoCsvWriter(const std::string& path, const std::vector<std::string>& walls = {}, int dim = 3,
-                           bool flows = false);
+                           bool flows = false, const FileMark* resume = nullptr);
   ~ThermoCsvWriter() override;
+  FileMark mark() { return f_->mark(); }
   void on_sample(const ThermoSample& s) override;
   void close();  // checked (WriteError); the destructor closes unchecked
 
@@ -185,8 +212,9 @@ class ThermoCsvWriter final : public Observer<2>, public Observer<3> {
 template <int D>
 class OutflowCsvWriter final : public Observer<D> {
  public:
-  OutflowCsvWriter(const std::string& path, const std::vector<std::string>& outlets);
+  OutflowCsvWriter(const std::string& path, const std::vector<std::string>& outlets, const FileMark* resume = nullptr);
   ~OutflowCsvWriter() override;
+  FileMark mark() { return f_->mark(); }
   void on_outflow(const OutflowRecord<D>& r) override;
   void on_sample(const ThermoSample&) override;
   void close();  // checked (WriteError); the destructor closes unchecked
@@ -200,6 +228,20 @@ class OutflowCsvWriter final : public Observer<D> {
 // velocity, angular_velocity, id, mode 0 = hard / 1 = soft, cluster -1 = none) and the time
 // series DIR/snapshots.pvd, rewritten after every snapshot so that it is complete whenever a run
 // stops.
+// What a snapshot series held at a checkpoint: each snapshot's time and files, and each wall's
+// file once written (walls at rest).
+struct SnapshotSeriesMark {
+  std::vector<double> times;
+  std::vector<std::vector<std::string>> files;
+  std::vector<std::string> static_files;
+  template <class A>
+  void archive(A& a) {
+    a(times);
+    a(files);
+    a(static_files);
+  }
+};
+
 template <int D>
 class VtkSnapshotWriter final : public Observer<D> {
  public:
@@ -211,9 +253,14 @@ class VtkSnapshotWriter final : public Observer<D> {
                              const Vec<D>& lower = Vec<D>::Zero(), const Vec<D>& upper = Vec<D>::Zero());
   bool wants_snapshots() const override { return true; }
   void on_snapshot(const Snapshot<D>& snap) override;
+  // The series so far (a checkpoint's), and continuing one: the files it names are in place.
+  using Mark = SnapshotSeriesMark;
+  Mark mark() const;
+  void resume(const Mark& m);
 
  private:
   std::string wall_file(std::size_t w, double t);  // writes it when needed; the relative path
+  void write_pvd();
   std::string dir_;
   std::vector<Wall<D>> walls_;
   Vec<D> lower_, upper_;

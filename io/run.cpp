@@ -5,6 +5,7 @@
 #include <algorithm>
 #include <cmath>
 #include <filesystem>
+#include <fstream>
 #include <limits>
 #include <numbers>
 #include <optional>
@@ -14,12 +15,15 @@
 #include "engine/hybrid.hpp"
 #include "engine/rough_rules.hpp"
 #include "engine/tdm.hpp"
+#include "io/checkpoint.hpp"
 #include "io/interrupt.hpp"
 #include "io/output.hpp"
 #include "io/run_folder.hpp"
 #include "io/scene_limits.hpp"
 
 namespace matep {
+
+namespace fs = std::filesystem;
 
 namespace {
 
@@ -206,10 +210,59 @@ void check_runnable(const Scene& scene, const System<D>& sys) {
   check_output_plan<D>(scene, sys);
 }
 
+// The scene keys a resumed run may change: where its outputs go, and how long it runs.
+const std::vector<std::string> kResumeMayDiffer = {"output.dir", "run.end_time"};
+
+// Refuses a checkpoint written for another method, dimension or scene, naming what differs.
+void check_resumable(const Scene& scene, int D, const Checkpoint& c, const std::string& path) {
+  if (c.method != static_cast<std::uint32_t>(scene.method) || c.dimension != static_cast<std::uint32_t>(D))
+    throw IoError(fmt::format("{}: written by a \"{}\" run in {}D; {} is a \"{}\" scene in {}D", path,
+                              method_name(static_cast<Method>(c.method)), c.dimension, scene.path,
+                              method_name(scene.method), D));
+  if (const auto d = scene_difference(c.scene, scene.canonical, kResumeMayDiffer))
+    throw IoError(fmt::format("{}: written for another scene than {}: {}", path, scene.path, *d));
+}
+
+// Copies the first mark.bytes bytes of `from` (an output of the run that wrote the checkpoint) to
+// `to`, checking them against the mark's checksum.
+void copy_prefix(const fs::path& from, const fs::path& to, const FileMark& mark, const std::string& ckpt) {
+  std::ifstream in(from, std::ios::binary);
+  if (!in)
+    throw IoError(fmt::format("{}: cannot continue {}: it is missing (resume needs the outputs of the run that "
+                              "wrote {}, in the folder that holds it)",
+                              from.string(), from.filename().string(), ckpt));
+  CheckedFile out(to.string(), "wb", 1 << 20);
+  std::vector<char> buf(1 << 20);
+  std::uint64_t left = mark.bytes;
+  std::uint32_t crc = 0;
+  while (left > 0) {
+    const std::size_t n = static_cast<std::size_t>(std::min<std::uint64_t>(left, buf.size()));
+    in.read(buf.data(), static_cast<std::streamsize>(n));
+    if (static_cast<std::size_t>(in.gcount()) != n) break;
+    crc = crc32c(buf.data(), n, crc);
+    out.write(buf.data(), n);
+    left -= n;
+  }
+  if (left > 0 || crc != mark.crc)
+    throw IoError(fmt::format("{}: does not begin with the {} bytes that {} continues ({}); resume needs the outputs "
+                              "of the run that wrote it",
+                              from.string(), mark.bytes, ckpt, left > 0 ? "it is shorter" : "their checksum differs"));
+  out.close();
+}
+
 template <int D>
 RunOutcome run_system(const Scene& scene, const System<D>& sys, const std::string& dir,
-                      const ProgressFn& progress) {
+                      const ProgressFn& progress, const std::string& resume) {
   check_runnable(scene, sys);
+  // A checkpoint to continue: read and checked against the scene before anything is written.
+  std::optional<Checkpoint> from;
+  fs::path from_dir;
+  if (!resume.empty()) {
+    from = read_checkpoint(resume);
+    check_resumable(scene, D, *from, resume);
+    std::error_code ec;
+    from_dir = fs::weakly_canonical(fs::absolute(fs::path(resume), ec).parent_path(), ec);
+  }
   const bool soft = scene.method == Method::Tdm;
   const bool hybrid = scene.method == Method::Hybrid;
   // The checks run once; their plans go to the engine.
@@ -226,40 +279,91 @@ RunOutcome run_system(const Scene& scene, const System<D>& sys, const std::strin
   // The outputs go to a staging folder and replace the folder's previous set only when complete.
   RunFolder folder(dir);
   const std::string out = folder.staging();
+  if (from) {
+    // A checkpoint in a killed run's staging folder: the run folder has just kept it as DIR.killed.
+    std::error_code ec;
+    if (!folder.killed().empty() && from_dir == fs::weakly_canonical(fs::absolute(folder.staging(), ec), ec))
+      from_dir = folder.killed();
+    copy_prefix(from_dir / "thermo.csv", fs::path(out) / "thermo.csv", from->thermo, resume);
+    if (from->outflow) copy_prefix(from_dir / "outflow.csv", fs::path(out) / "outflow.csv", *from->outflow, resume);
+    if (from->events) copy_prefix(from_dir / "events.bin", fs::path(out) / "events.bin", from->events->file, resume);
+    if (from->snapshots) {
+      fs::create_directories(fs::path(out) / "snapshots", ec);
+      for (const auto& files : from->snapshots->files)
+        for (const std::string& rel : files) {
+          if (fs::exists(fs::path(out) / rel, ec)) continue;  // a wall at rest: one file for all
+          if (rel.find("..") != std::string::npos || !fs::copy_file(from_dir / rel, fs::path(out) / rel, ec) || ec)
+            throw IoError(fmt::format("{}: cannot continue the snapshot series: {} is missing or unreadable",
+                                      resume, (from_dir / rel).string()));
+        }
+    }
+  }
   const EdmSettings settings = edm_settings(scene);
   std::vector<std::string> wall_names;
   if (scene.output.wall_loads)
     for (const auto& w : sys.walls) wall_names.push_back(w.name);
   const bool flows = !sys.outlets.empty() || !sys.inlets.empty();
-  ThermoCsvWriter thermo(out + "/thermo.csv", wall_names, D, flows);
+  ThermoCsvWriter thermo(out + "/thermo.csv", wall_names, D, flows, from ? &from->thermo : nullptr);
   std::unique_ptr<EventLogWriter<D>> log;
   std::vector<Observer<D>*> observers{static_cast<Observer<D>*>(&thermo)};
   std::unique_ptr<OutflowCsvWriter<D>> outflow;
   if (!sys.outlets.empty()) {
     std::vector<std::string> names;
     for (const auto& o : sys.outlets) names.push_back(o.name);
-    outflow = std::make_unique<OutflowCsvWriter<D>>(out + "/outflow.csv", names);
+    outflow = std::make_unique<OutflowCsvWriter<D>>(out + "/outflow.csv", names,
+                                                    from && from->outflow ? &*from->outflow : nullptr);
     observers.push_back(outflow.get());
   }
   if (scene.output.events) {
-    log = std::make_unique<EventLogWriter<D>>(out + "/events.bin", sys.size() + inlet_slots(sys.inlets, scene.end_time),
-                                              !sys.fixed.empty());
+    if (from && from->events)
+      log = std::make_unique<EventLogWriter<D>>(out + "/events.bin", *from->events);
+    else
+      log = std::make_unique<EventLogWriter<D>>(out + "/events.bin", sys.size() + inlet_slots(sys.inlets, scene.end_time),
+                                                !sys.fixed.empty());
     observers.push_back(log.get());
   }
   std::unique_ptr<VtkSnapshotWriter<D>> vtk;
   if (scene.output.snapshot_interval > 0.0) {
     vtk = std::make_unique<VtkSnapshotWriter<D>>(out, sys.walls, sys.lower, sys.upper);
+    if (from && from->snapshots) vtk->resume(*from->snapshots);
     observers.push_back(vtk.get());
   }
+  // Checkpoints: the engine's state with what every output held at that moment, written whole
+  // into the staging folder (published with the set; a killed run's is kept as DIR.killed).
+  CheckpointHooks hooks;
+  hooks.interval = scene.output.checkpoint_interval;
+  hooks.save = [&](double t, const std::vector<std::uint8_t>& state) {
+    Checkpoint c;
+    c.method = static_cast<std::uint32_t>(scene.method);
+    c.dimension = D;
+    c.scene = scene.canonical;
+    c.time = t;
+    c.thermo = thermo.mark();
+    if (outflow) c.outflow = outflow->mark();
+    if (log) c.events = log->mark();
+    if (vtk) c.snapshots = vtk->mark();
+    c.engine = state;
+    write_checkpoint(out + "/" + kCheckpointName, c);
+  };
+  if (from) hooks.resume = &from->engine;
   std::unique_ptr<ProgressObserver> prog;
   if (progress) {
     prog = std::make_unique<ProgressObserver>(progress, scene.end_time);
     observers.push_back(static_cast<Observer<D>*>(prog.get()));
   }
   const QueueKind q = scene.queue == "heap" ? QueueKind::Heap : QueueKind::Calendar;
-  RunResult<D> res = soft     ? run_tdm<D>(sys, tdm_settings(scene), observers, &*plan)
-                     : hybrid ? run_hybrid<D>(sys, settings, hybrid_settings(scene), observers, &*plan)
-                              : run_edm<D>(sys, settings, q, observers, &*rough);
+  EdmSettings edm = settings;
+  edm.checkpoint = &hooks;
+  TdmSettings tdm = tdm_settings(scene);
+  tdm.checkpoint = &hooks;
+  RunResult<D> res;
+  try {
+    res = soft     ? run_tdm<D>(sys, tdm, observers, &*plan)
+          : hybrid ? run_hybrid<D>(sys, edm, hybrid_settings(scene), observers, &*plan)
+                   : run_edm<D>(sys, edm, q, observers, &*rough);
+  } catch (const StateError& e) {
+    throw IoError(fmt::format("{}: cannot continue it with {}: {}", resume, scene.path, e.what()));
+  }
   if (log) log->close();
   if (outflow) outflow->close();
   thermo.close();
@@ -429,8 +533,9 @@ std::string describe(const Scene& scene, const System<D>& sys) {
 
 }  // namespace
 
-RunOutcome run_scene(const Scene& scene, const std::string& out_dir, const ProgressFn& progress) {
-  return std::visit([&](const auto& sys) { return run_system(scene, sys, out_dir, progress); },
+RunOutcome run_scene(const Scene& scene, const std::string& out_dir, const ProgressFn& progress,
+                     const std::string& resume) {
+  return std::visit([&](const auto& sys) { return run_system(scene, sys, out_dir, progress, resume); },
                     scene.system);
 }
 

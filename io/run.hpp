@@ -31,7 +31,9 @@ HybridSettings hybrid_settings(const Scene& scene);
 using ProgressFn = std::function<void(double time, double fraction, std::uint64_t events)>;
 
 // Throws SceneError / IoError / std::invalid_argument for problems found before the run starts.
-RunOutcome run_scene(const Scene& scene, const std::string& out_dir, const ProgressFn& progress = {});
+// resume: a checkpoint.bin to continue (io/checkpoint.hpp), beside the outputs it continues.
+RunOutcome run_scene(const Scene& scene, const std::string& out_dir, const ProgressFn& progress = {},
+                     const std::string& resume = {});
 
 // The multi-line description printed by `matep check`.
 std::string describe_scene(const Scene& scene);

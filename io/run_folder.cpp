@@ -21,9 +21,9 @@ namespace matep {
 namespace fs = std::filesystem;
 
 bool is_run_output(const std::string& name) {
-  static constexpr std::array<std::string_view, 8> kNames{
+  static constexpr std::array<std::string_view, 10> kNames{
       "thermo.csv", "final_state.csv", "summary.json", "events.bin",
-      "outflow.csv", "snapshots.pvd", "snapshots.pvd.tmp", "snapshots"};
+      "outflow.csv", "snapshots.pvd", "snapshots.pvd.tmp", "snapshots", "checkpoint.bin", "checkpoint.bin.tmp"};
   for (std::string_view n : kNames)
     if (name == n) return true;
   return false;
@@ -120,7 +120,15 @@ RunFolder::RunFolder(const std::string& dir) {
     if (fs::exists(staging_, ec)) {
       if (!fs::is_directory(staging_, ec))
         throw IoError(fmt::format("{}: in the way of the run's staging folder (not a folder); move it away", staging_));
-      if (const std::string kept = clear_into(staging_, p); !kept.empty())
+      // A killed run's checkpoint (and the outputs it continues) is kept for --resume.
+      if (fs::exists(fs::path(staging_) / "checkpoint.bin", ec)) {
+        killed_ = dir_ + ".killed";
+        fs::remove_all(killed_, ec);
+        fs::rename(staging_, killed_, ec);
+        if (ec)
+          throw WriteError(fmt::format("{}: cannot keep a killed run's checkpoint as {}: {}", staging_, killed_,
+                                       ec.message()));
+      } else if (const std::string kept = clear_into(staging_, p); !kept.empty())
         throw IoError(fmt::format("{}: left by an interrupted run, it holds '{}', which {} holds too; move one away",
                                   staging_, kept, dir_));
     }

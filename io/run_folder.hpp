@@ -33,9 +33,11 @@ class RunFolder {
   const std::string& staging() const { return staging_; }  // where the run writes them
   // Moves the staging folder's files into place as one set (signals held back meanwhile).
   void publish();
+  // Where a killed run's staging folder with a checkpoint was kept (DIR.killed; empty: none was).
+  const std::string& killed() const { return killed_; }
 
  private:
-  std::string dir_, staging_, lock_path_;
+  std::string dir_, staging_, lock_path_, killed_;
   int lock_fd_ = -1;
   bool published_ = false;
 };

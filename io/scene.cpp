@@ -1132,6 +1132,11 @@ Scene build_scene(toml::table& root, const std::string& file, const fs::path& ba
   apply_overrides(root, overrides, file);
   Scene scene;
   scene.path = file;
+  {
+    std::ostringstream canon;  // what a checkpoint compares (io/checkpoint.hpp)
+    canon << toml::toml_formatter(root);
+    scene.canonical = canon.str();
+  }
   const TableReader top(scene.path, root, "");
   top.allow({"run", "domain", "material", "particles", "wall", "inlet", "outlet", "output", "hybrid"});
 
@@ -1172,13 +1177,15 @@ Scene build_scene(toml::table& root, const std::string& file, const fs::path& ba
   // [output]
   if (top.has("output")) {
     const TableReader out = top.sub("output");
-    out.allow({"dir", "thermo_interval", "events", "snapshot_interval", "wall_loads", "max_bytes"});
+    out.allow({"dir", "thermo_interval", "events", "snapshot_interval", "wall_loads", "max_bytes",
+               "checkpoint_interval"});
     scene.output.dir = out.string_opt("dir").value_or(scene.output.dir);
     scene.output.thermo_interval = out.number_or("thermo_interval", 0.0, kNonNegative);
     scene.output.events = out.boolean_or("events", false);
     scene.output.snapshot_interval = out.number_or("snapshot_interval", 0.0, kNonNegative);
     scene.output.wall_loads = out.boolean_or("wall_loads", false);
     scene.output.max_bytes = out.number_or("max_bytes", scene.output.max_bytes, kPositive);
+    scene.output.checkpoint_interval = out.number_or("checkpoint_interval", 0.0, kNonNegative);
   }
 
   if (!top.has("domain")) top.need("domain");

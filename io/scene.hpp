@@ -32,6 +32,7 @@ struct OutputSpec {
   double snapshot_interval = 0.0;  // VTK snapshots every interval (0 = none)
   bool wall_loads = false;         // thermo.csv gets each wall's mean force and torque
   double max_bytes = 10e9;         // a run whose planned outputs exceed this is refused (io/run.cpp)
+  double checkpoint_interval = 0.0;  // checkpoint.bin every interval (0: at the end and on a signal only)
 };
 
 // [hybrid]: the switching rule of run.method = "hybrid" (engine/hybrid.hpp); unset = default.
@@ -42,6 +43,7 @@ struct HybridSpec {
 
 struct Scene {
   std::string path;               // the scene file as given
+  std::string canonical;          // the scene as canonical TOML, overrides applied (checkpoints)
   int dimension = 3;
   Method method = Method::Edm;    // run.method: "edm" | "tdm" | "hybrid"
   std::string queue = "calendar"; // "calendar" | "heap"

@@ -33,7 +33,7 @@ const char* kUsage =
     "matep: hybrid event-driven / time-driven granular dynamics\n"
     "\n"
     "usage:\n"
-    "  matep run SCENE.toml [--set KEY=VALUE]... [--out DIR] [--quiet]\n"
+    "  matep run SCENE.toml [--set KEY=VALUE]... [--out DIR] [--resume CHECKPOINT] [--quiet]\n"
     "  matep check SCENE.toml [--set KEY=VALUE]...\n"
     "  matep log stats LOG [--bins N]\n"
     "  matep log filter LOG --out FILE [--from T] [--to T] [--ids I,J,...] [--kind K]... [--csv]\n"
@@ -65,6 +65,8 @@ const char* kUsage =
     "  --set KEY=VALUE  overrides any scene key by its dotted path, e.g.\n"
     "                   --set run.end_time=2 --set material.glass.restitution=0.8\n"
     "  --out DIR        output folder (overrides output.dir)\n"
+    "  --resume FILE    continue the run saved in FILE (a checkpoint.bin, beside the outputs\n"
+    "                   it continues), bit for bit as if it had not stopped\n"
     "  --quiet          no progress line even on a terminal\n";
 
 int fail(const std::string& msg, int code = kExitUsage) {
@@ -77,6 +79,7 @@ struct Args {
   std::string scene;
   std::vector<std::string> sets;
   std::string out;
+  std::string resume;
   bool quiet = false;
 };
 
@@ -84,7 +87,9 @@ Args parse(const std::vector<std::string>& rest, bool allow_out) {
   po::options_description opts("options");
   opts.add_options()("set", po::value<std::vector<std::string>>()->composing(), "override")(
       "scene", po::value<std::string>(), "scene file");
-  if (allow_out) opts.add_options()("out", po::value<std::string>(), "output dir")("quiet", "no progress");
+  if (allow_out)
+    opts.add_options()("out", po::value<std::string>(), "output dir")("quiet", "no progress")(
+        "resume", po::value<std::string>(), "checkpoint to continue");
   po::positional_options_description pos;
   pos.add("scene", 1);
   po::variables_map vm;
@@ -96,6 +101,7 @@ Args parse(const std::vector<std::string>& rest, bool allow_out) {
   if (vm.count("set")) a.sets = vm["set"].as<std::vector<std::string>>();
   if (allow_out && vm.count("out")) a.out = vm["out"].as<std::string>();
   if (allow_out && vm.count("quiet")) a.quiet = true;
+  if (allow_out && vm.count("resume")) a.resume = vm["resume"].as<std::string>();
   return a;
 }
 
@@ -130,7 +136,7 @@ int cmd_run(const std::vector<std::string>& rest) {
                  events / std::max(el, 1e-9), scene.method == matep::Method::Tdm ? "steps" : "events", eta);
     };
   }
-  const matep::RunOutcome out = matep::run_scene(scene, dir, progress);
+  const matep::RunOutcome out = matep::run_scene(scene, dir, progress, a.resume);
   if (tty) fmt::print(stderr, "\r{:78}\r", "");
   for (const auto& w : out.warnings) fmt::print(stderr, "warning: {}: {}\n", scene.path, w);
   if (scene.method == matep::Method::Edm)

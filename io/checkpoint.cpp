@@ -1,0 +1,188 @@
+#include "io/checkpoint.hpp"
+
+#include <fcntl.h>
+#include <fmt/format.h>
+#include <unistd.h>
+
+#include <algorithm>
+#include <cerrno>
+#include <cstring>
+#include <filesystem>
+#include <fstream>
+#include <sstream>
+#include <toml++/toml.h>
+
+#include "engine/state_archive.hpp"
+#include "io/io_error.hpp"
+
+namespace matep {
+
+namespace {
+constexpr std::uint32_t kByteOrder = 0x01020304;
+constexpr std::size_t kHead = 8 + 4 + 4 + 8;
+}  // namespace
+
+template <class A>
+void Checkpoint::archive(A& a) {
+  a.tag("checkpoint");
+  a(method);
+  a(dimension);
+  a(scene);
+  a(time);
+  a(threads);
+  a.tag("outputs");
+  a(thermo);
+  bool has = outflow.has_value();
+  a(has);
+  if (has) {
+    if (!outflow) outflow.emplace();
+    a(*outflow);
+  }
+  has = events.has_value();
+  a(has);
+  if (has) {
+    if (!events) events.emplace();
+    a(*events);
+  }
+  has = snapshots.has_value();
+  a(has);
+  if (has) {
+    if (!snapshots) snapshots.emplace();
+    a(*snapshots);
+  }
+  a.tag("engine");
+  a(engine);
+}
+
+void write_checkpoint(const std::string& path, const Checkpoint& c) {
+  StateWriter body;
+  const_cast<Checkpoint&>(c).archive(body);
+  std::vector<std::uint8_t> out(kHead);
+  std::memcpy(out.data(), kCheckpointMagic, 8);
+  std::memcpy(out.data() + 8, &kCheckpointVersion, 4);
+  std::memcpy(out.data() + 12, &kByteOrder, 4);
+  const std::uint64_t n = body.bytes.size();
+  std::memcpy(out.data() + 16, &n, 8);
+  out.insert(out.end(), body.bytes.begin(), body.bytes.end());
+  const std::uint32_t crc = crc32c(out.data(), out.size(), 0);
+  const auto* cb = reinterpret_cast<const std::uint8_t*>(&crc);
+  out.insert(out.end(), cb, cb + 4);
+  // A temporary beside it, synced, then renamed: the checkpoint in place is always whole.
+  const std::string tmp = path + ".tmp";
+  {
+    CheckedFile f(tmp, "wb");
+    f.write(out.data(), out.size());
+    f.flush();
+    const int fd = ::open(tmp.c_str(), O_RDONLY);
+    if (fd >= 0) {
+      ::fsync(fd);
+      ::close(fd);
+    }
+    f.close();
+  }
+  std::error_code ec;
+  std::filesystem::rename(tmp, path, ec);
+  if (ec) throw WriteError(fmt::format("{}: cannot rename into place: {}", path, ec.message()));
+}
+
+Checkpoint parse_checkpoint(const std::vector<std::uint8_t>& bytes, const std::string& path) {
+  if (bytes.size() < kHead + 4 || std::memcmp(bytes.data(), kCheckpointMagic, 8) != 0)
+    throw IoError(fmt::format("{}: not a matep checkpoint (no \"MATEPCKP\" header)", path));
+  std::uint32_t version = 0, order = 0;
+  std::uint64_t n = 0;
+  std::memcpy(&version, bytes.data() + 8, 4);
+  std::memcpy(&order, bytes.data() + 12, 4);
+  std::memcpy(&n, bytes.data() + 16, 8);
+  if (order != kByteOrder)
+    throw IoError(fmt::format("{}: written on a machine of another byte order; a checkpoint resumes on the "
+                              "machine class that wrote it",
+                              path));
+  if (version != kCheckpointVersion)
+    throw IoError(fmt::format("{}: checkpoint version {}, this matep reads version {}", path, version,
+                              kCheckpointVersion));
+  if (n != bytes.size() - kHead - 4)
+    throw IoError(fmt::format("{}: {} bytes, the header gives {} (cut short or extended)", path, bytes.size(),
+                              n + kHead + 4));
+  std::uint32_t stored = 0;
+  std::memcpy(&stored, bytes.data() + bytes.size() - 4, 4);
+  if (crc32c(bytes.data(), bytes.size() - 4, 0) != stored)
+    throw IoError(fmt::format("{}: the checksum does not match (the file is corrupt)", path));
+  const std::vector<std::uint8_t> body(bytes.begin() + kHead, bytes.end() - 4);
+  Checkpoint c;
+  try {
+    StateReader r(body);
+    c.archive(r);
+    if (!r.done()) throw StateError("bytes after the engine state");
+  } catch (const StateError& e) {
+    throw IoError(fmt::format("{}: not a readable checkpoint: {}", path, e.what()));
+  }
+  if (c.method > 2 || (c.dimension != 2 && c.dimension != 3))
+    throw IoError(fmt::format("{}: not a readable checkpoint: method {} dimension {}", path, c.method, c.dimension));
+  return c;
+}
+
+Checkpoint read_checkpoint(const std::string& path) {
+  std::error_code ec;
+  if (!std::filesystem::is_regular_file(path, ec))
+    throw IoError(fmt::format("{}: cannot read the checkpoint: {}", path,
+                              std::filesystem::exists(path, ec) ? "not a regular file" : "no such file"));
+  std::ifstream in(path, std::ios::binary);
+  if (!in) throw IoError(fmt::format("{}: cannot read the checkpoint: {}", path, std::strerror(errno)));
+  std::vector<std::uint8_t> bytes((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+  if (in.bad()) throw IoError(fmt::format("{}: cannot read the checkpoint: read error", path));
+  return parse_checkpoint(bytes, path);
+}
+
+namespace {
+
+std::string text(const toml::node* n) {
+  if (!n) return "(absent)";
+  std::ostringstream s;
+  n->visit([&](const auto& v) {
+    if constexpr (toml::is_table<decltype(v)>) s << "a table";
+    else s << toml::toml_formatter(v, toml::format_flags::none);
+  });
+  return s.str();
+}
+std::string show(const toml::node* n) {
+  std::string out = text(n);
+  if (out.size() > 80) out = out.substr(0, 77) + "...";
+  return out;
+}
+
+std::optional<std::string> first_difference(const toml::table& a, const toml::table& b, const std::string& prefix,
+                                            const std::vector<std::string>& ignore) {
+  std::vector<std::string> keys;
+  for (const auto& [k, v] : a) keys.emplace_back(k.str());
+  for (const auto& [k, v] : b)
+    if (!a.contains(k.str())) keys.emplace_back(k.str());
+  for (const std::string& k : keys) {
+    const std::string key = prefix.empty() ? k : prefix + "." + k;
+    if (std::find(ignore.begin(), ignore.end(), key) != ignore.end()) continue;
+    const toml::node* x = a.get(k);
+    const toml::node* y = b.get(k);
+    if (x && y && x->is_table() && y->is_table()) {
+      if (auto d = first_difference(*x->as_table(), *y->as_table(), key, ignore)) return d;
+      continue;
+    }
+    if (!x || !y || x->type() != y->type() || text(x) != text(y)) return fmt::format("{}: checkpoint {}, this scene {}", key, show(x), show(y));
+  }
+  return std::nullopt;
+}
+
+}  // namespace
+
+std::optional<std::string> scene_difference(const std::string& saved, const std::string& now,
+                                            const std::vector<std::string>& ignore) {
+  if (saved == now) return std::nullopt;
+  toml::table a, b;
+  try {
+    a = toml::parse(saved);
+    b = toml::parse(now);
+  } catch (const toml::parse_error&) {
+    return std::string("the scene text differs");
+  }
+  return first_difference(a, b, "", ignore);
+}
+
+}  // namespace matep

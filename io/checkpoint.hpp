@@ -1,0 +1,55 @@
+// Checkpoint files (checkpoint.bin): everything a run needs to continue bit for bit. A run writes
+// one at the end, one when a signal stops it, and one every output.checkpoint_interval; `matep run
+// SCENE --resume FILE` continues it (io/run.cpp).
+//
+// Layout (version 1, little-endian, the machine's doubles): "MATEPCKP", u32 version, u32 byte-order
+// mark 0x01020304, u64 body length, the body, u32 CRC-32C of everything before it. The body lists
+// (engine/state_archive.hpp's encoding): the method and dimension, the scene as canonical TOML,
+// the time, what each output file held (length and CRC-32C), the event log's unfinished block,
+// the snapshot series, and the engine's state.
+#pragma once
+
+#include <cstdint>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "io/checked_file.hpp"
+#include "io/output.hpp"
+
+namespace matep {
+
+inline constexpr char kCheckpointMagic[8] = {'M', 'A', 'T', 'E', 'P', 'C', 'K', 'P'};
+inline constexpr std::uint32_t kCheckpointVersion = 1;
+inline constexpr const char* kCheckpointName = "checkpoint.bin";
+
+struct Checkpoint {
+  std::uint32_t method = 0;  // Method
+  std::uint32_t dimension = 3;
+  std::string scene;         // the scene as canonical TOML (overrides applied)
+  double time = 0.0;         // the simulated time it was saved at
+  std::uint64_t threads = 0; // the soft loops' thread count (0: not a soft run)
+  FileMark thermo;
+  std::optional<FileMark> outflow;
+  std::optional<EventLogMark> events;
+  std::optional<SnapshotSeriesMark> snapshots;
+  std::vector<std::uint8_t> engine;
+
+  template <class A>
+  void archive(A& a);
+};
+
+// Writes `path` whole: a temporary beside it, flushed and synced, renamed onto it. Throws WriteError.
+void write_checkpoint(const std::string& path, const Checkpoint& c);
+// Reads and checks a checkpoint; throws IoError "PATH: ..." naming what is wrong (not a checkpoint,
+// another version or byte order, cut short, a checksum that does not match).
+Checkpoint read_checkpoint(const std::string& path);
+// The same from bytes already read (the fuzz target).
+Checkpoint parse_checkpoint(const std::vector<std::uint8_t>& bytes, const std::string& path);
+
+// The first difference between two canonical scenes, as "KEY: checkpoint VALUE, this scene VALUE"
+// (nothing when they are the same); keys in `ignore` (dotted) are skipped.
+std::optional<std::string> scene_difference(const std::string& saved, const std::string& now,
+                                            const std::vector<std::string>& ignore);
+
+}  // namespace matep

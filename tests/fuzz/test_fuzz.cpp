@@ -1,8 +1,9 @@
-// The scene reader, the CSV particle reader and the event-log reader under the mutation fuzzer
-// (tests/fuzz/fuzz_driver.hpp): every input must load or be refused with SceneError / IoError /
-// std::invalid_argument (CSV: CsvError; events.bin: IoError); never a crash, a hang (> 2 s) or more
-// than 1 GiB. The corpus is tests/fuzz/corpus/ (small scenes from cases/ and tests/data, small
-// event logs made by tests/fuzz/make_event_corpus.py, and each input that once broke a reader).
+// The scene reader, the CSV particle reader, the event-log reader and the checkpoint reader under
+// the mutation fuzzer (tests/fuzz/fuzz_driver.hpp): every input must load or be refused with
+// SceneError / IoError / std::invalid_argument (CSV: CsvError; events.bin and checkpoints: IoError);
+// never a crash, a hang (> 2 s) or more than 1 GiB. The corpus is tests/fuzz/corpus/ (small scenes
+// from cases/ and tests/data, small event logs made by tests/fuzz/make_event_corpus.py, small
+// checkpoints made by tests/fuzz/make_checkpoint_corpus.sh, and each input that once broke a reader).
 //
 // A short run by default; MATEP_FUZZ_EXECS=N (per target) and MATEP_FUZZ_SECONDS=S run longer,
 // MATEP_FUZZ_SEED=K another sequence. Each run prints its executions per second. A failing input is
@@ -20,6 +21,7 @@
 #include <string>
 
 #include "io/log_tools.hpp"
+#include "io/checkpoint.hpp"
 #include "io/output.hpp"
 #include "io/scene.hpp"
 #include "io/scene_csv.hpp"
@@ -118,6 +120,25 @@ void events_target(const std::string& input) {
   }
 }
 
+// The checkpoint reader (io/checkpoint.hpp) on bytes: half of the inputs get their length field
+// and trailing CRC-32C recomputed so that a mutation reaches the body's parts (tags, lengths,
+// optional outputs) instead of stopping at the checksum.
+void checkpoint_target(const std::string& input) {
+  std::vector<std::uint8_t> bytes(input.begin(), input.end());
+  if ((matep::crc32c(input.data(), input.size()) & 1) && bytes.size() >= 28 &&
+      std::memcmp(bytes.data(), matep::kCheckpointMagic, 8) == 0) {
+    const std::uint64_t n = bytes.size() - 28;
+    std::memcpy(bytes.data() + 16, &n, 8);
+    const std::uint32_t crc = matep::crc32c(bytes.data(), bytes.size() - 4);
+    std::memcpy(bytes.data() + bytes.size() - 4, &crc, 4);
+  }
+  try {
+    const matep::Checkpoint c = matep::parse_checkpoint(bytes, "fuzz.ckpt");
+    (void)matep::scene_difference(c.scene, "[run]\nend_time = 1.0\n", {"output.dir"});
+  } catch (const matep::IoError&) {
+  }
+}
+
 // Runs one target over its corpus and fails with each failing input's number, reason and file.
 void fuzz(const std::string& name, std::string_view ext, const matep::fuzz::Target& target, std::uint64_t execs,
           std::uint64_t memory_bytes) {
@@ -163,6 +184,10 @@ TEST(Fuzz, EventLogReaderNeverCrashesHangsOrOverallocates) {
   g_events_path = "/proc/self/fd/" + std::to_string(g_events_fd);
   fuzz("events", ".bin", events_target, kShortRun / 2, std::uint64_t{1} << 30);
   ::close(g_events_fd);
+}
+
+TEST(Fuzz, CheckpointReaderNeverCrashesHangsOrOverallocates) {
+  fuzz("checkpoint", ".ckpt", checkpoint_target, kShortRun / 2, std::uint64_t{1} << 30);
 }
 
 // The driver itself: an input is a function of (seed, index), the corpus comes first unchanged, and

@@ -539,6 +539,17 @@ RunOutcome run_scene(const Scene& scene, const std::string& out_dir, const Progr
                     scene.system);
 }
 
+std::string describe_checkpoint(const Scene& scene, const std::string& path) {
+  const Checkpoint c = read_checkpoint(path);
+  check_resumable(scene, scene.dimension, c, path);
+  std::string s = fmt::format("checkpoint   {}: a \"{}\" run at t = {:.17g}; continues thermo.csv ({} bytes)", path,
+                              method_name(static_cast<Method>(c.method)), c.time, c.thermo.bytes);
+  if (c.events) s += fmt::format(", events.bin ({} records)", c.events->total);
+  if (c.outflow) s += fmt::format(", outflow.csv ({} bytes)", c.outflow->bytes);
+  if (c.snapshots) s += fmt::format(", {} snapshots", c.snapshots->times.size());
+  return s + "\n";
+}
+
 std::string describe_scene(const Scene& scene) {
   return std::visit([&](const auto& sys) { return describe(scene, sys); }, scene.system);
 }

@@ -35,6 +35,10 @@ using ProgressFn = std::function<void(double time, double fraction, std::uint64_
 RunOutcome run_scene(const Scene& scene, const std::string& out_dir, const ProgressFn& progress = {},
                      const std::string& resume = {});
 
+// What `matep check SCENE --resume FILE` prints: the checkpoint read whole (its checksum right) and
+// checked against the scene (io/checkpoint.hpp); throws IoError naming what is wrong.
+std::string describe_checkpoint(const Scene& scene, const std::string& path);
+
 // The multi-line description printed by `matep check`.
 std::string describe_scene(const Scene& scene);
 

@@ -9,6 +9,11 @@ folder holds exactly one complete set: the previous one, or the new one (finishe
 summary.json parses, its time_reached is the last thermo.csv row's time, final_state.csv has one
 row per grain and events.bin reads whole (matep log stats: every block checks).
 
+The new runs keep checkpoints (output.checkpoint_interval: an eighth of the run). After every kill
+that leaves one -- in the new set after SIGINT / SIGTERM, in DIR.running after SIGKILL -- the run
+is continued with --resume, and the continued set must equal, byte for byte (thermo.csv,
+final_state.csv, events.bin), the set of the same run left alone.
+
   tools/kill_test.py [--kills 300] [--matep build/matep] [--seed 1]
 
 Prints the counts per method and signal; exit status 1 on the first folder that is not one
@@ -63,6 +68,20 @@ def run(matep, scene, end, out, extra=()):
                             stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
 
 
+def checkpointing(end):
+    return ("--set", f"output.checkpoint_interval={end / 8}")
+
+
+def same_outputs(a, b):
+    """Raises AssertionError naming the first output of folder b that differs from a's."""
+    for f in ("thermo.csv", "final_state.csv", "events.bin"):
+        pa, pb = os.path.join(a, f), os.path.join(b, f)
+        assert os.path.exists(pa) == os.path.exists(pb), f"{f}: in one set only"
+        if os.path.exists(pa):
+            with open(pa, "rb") as x, open(pb, "rb") as y:
+                assert x.read() == y.read(), f"{f} of the resumed run differs from the run left alone"
+
+
 def main():
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("--kills", type=int, default=300)
@@ -82,15 +101,17 @@ def main():
             path = os.path.join(ROOT, "cases", scene)
             assert run(a.matep, path, end_a, out).wait() == 0, f"{m}: the first run failed"
             t0 = time.perf_counter()
-            assert run(a.matep, path, end_b, out).wait() == 0, f"{m}: the timing run failed"
+            assert run(a.matep, path, end_b, out, checkpointing(end_b)).wait() == 0, f"{m}: the timing run failed"
             durations[m] = time.perf_counter() - t0
+            shutil.copytree(out, out + ".alone")  # the new run left alone: what a resumed one must give
             assert run(a.matep, path, end_a, out).wait() == 0
         for k in range(a.kills):
             m = list(METHODS)[k % len(METHODS)]
             sname = list(SIGNALS)[(k // len(METHODS)) % len(SIGNALS)]
             scene, end_a, end_b = METHODS[m]
             out = os.path.join(work, m)
-            p = run(a.matep, os.path.join(ROOT, "cases", scene), end_b, out)
+            path = os.path.join(ROOT, "cases", scene)
+            p = run(a.matep, path, end_b, out, checkpointing(end_b))
             time.sleep(rng.uniform(0.0, 1.2 * durations[m]))
             p.send_signal(SIGNALS[sname])
             code = p.wait()
@@ -102,20 +123,32 @@ def main():
                     outcome = "new set, " + ("interrupted" if status == "interrupted" else "complete")
                 else:
                     raise AssertionError(f"a set with end_time {end}")
+                # A checkpoint the kill left: it continues to the set of the run left alone.
+                ck = None
+                if outcome == "new set, interrupted":
+                    ck = os.path.join(out, "checkpoint.bin")
+                elif outcome == "previous set" and os.path.exists(os.path.join(out + ".running", "checkpoint.bin")):
+                    ck = os.path.join(out + ".running", "checkpoint.bin")
+                if ck:
+                    r = run(a.matep, path, end_b, out, checkpointing(end_b) + ("--resume", ck)).wait()
+                    assert r == 0, f"--resume {ck} exited with {r}"
+                    same_outputs(out + ".alone", out)
+                    outcome += " + resumed"
+                    shutil.rmtree(out + ".killed", ignore_errors=True)
             except (AssertionError, OSError, ValueError, KeyError) as e:
-                outcome = "NOT ONE COMPLETE SET"
+                outcome = "NOT ONE COMPLETE SET" if "resum" not in str(e) else "RESUME DIFFERS"
                 bad += 1
                 print(f"kill {k}: {m} {sname} (exit {code}): {e}", file=sys.stderr)
             key = (m, sname, outcome)
             counts[key] = counts.get(key, 0) + 1
             # The next trial starts from the previous set again.
             if outcome != "previous set":
-                run(a.matep, os.path.join(ROOT, "cases", scene), end_a, out).wait()
+                run(a.matep, path, end_a, out).wait()
         print(f"{a.kills} kills (seed {a.seed}); run lengths: "
               + ", ".join(f"{m} {d:.2f} s" for m, d in durations.items()))
-        print("method   signal   outcome                      count")
+        print("method   signal   outcome                                  count")
         for (m, s, o), c in sorted(counts.items()):
-            print(f"{m:8} {s:8} {o:28} {c}")
+            print(f"{m:8} {s:8} {o:40} {c}")
         print("every folder held one complete set" if bad == 0 else f"{bad} folders did not hold one complete set")
     finally:
         shutil.rmtree(work, ignore_errors=True)

@@ -34,7 +34,7 @@ const char* kUsage =
     "\n"
     "usage:\n"
     "  matep run SCENE.toml [--set KEY=VALUE]... [--out DIR] [--resume CHECKPOINT] [--quiet]\n"
-    "  matep check SCENE.toml [--set KEY=VALUE]...\n"
+    "  matep check SCENE.toml [--set KEY=VALUE]... [--resume CHECKPOINT]\n"
     "  matep log stats LOG [--bins N]\n"
     "  matep log filter LOG --out FILE [--from T] [--to T] [--ids I,J,...] [--kind K]... [--csv]\n"
     "  matep log verify LOG [--scene SCENE.toml [--set KEY=VALUE]...] [--tol TOL]\n"
@@ -46,7 +46,8 @@ const char* kUsage =
     "          folder's previous outputs are replaced only once the new set is complete.\n"
     "          Ctrl-C (SIGINT) or SIGTERM stops at the next event or step and writes every\n"
     "          output (status \"interrupted\", exit 130 / 143); a second one stops at once\n"
-    "  check   validates the scene and prints what will be modelled\n"
+    "  check   validates the scene and prints what will be modelled; with --resume, also\n"
+    "          that the checkpoint is whole and was written for this scene\n"
     "  log     reads an event log (events.bin) record by record, checking every block's\n"
     "          checksum and every record (exit status 2 at the first bad one):\n"
     "          stats   counts by kind, time span, collision rate in N time bins (default 10),\n"
@@ -86,10 +87,8 @@ struct Args {
 Args parse(const std::vector<std::string>& rest, bool allow_out) {
   po::options_description opts("options");
   opts.add_options()("set", po::value<std::vector<std::string>>()->composing(), "override")(
-      "scene", po::value<std::string>(), "scene file");
-  if (allow_out)
-    opts.add_options()("out", po::value<std::string>(), "output dir")("quiet", "no progress")(
-        "resume", po::value<std::string>(), "checkpoint to continue");
+      "scene", po::value<std::string>(), "scene file")("resume", po::value<std::string>(), "checkpoint");
+  if (allow_out) opts.add_options()("out", po::value<std::string>(), "output dir")("quiet", "no progress");
   po::positional_options_description pos;
   pos.add("scene", 1);
   po::variables_map vm;
@@ -101,7 +100,7 @@ Args parse(const std::vector<std::string>& rest, bool allow_out) {
   if (vm.count("set")) a.sets = vm["set"].as<std::vector<std::string>>();
   if (allow_out && vm.count("out")) a.out = vm["out"].as<std::string>();
   if (allow_out && vm.count("quiet")) a.quiet = true;
-  if (allow_out && vm.count("resume")) a.resume = vm["resume"].as<std::string>();
+  if (vm.count("resume")) a.resume = vm["resume"].as<std::string>();
   return a;
 }
 
@@ -110,7 +109,8 @@ int cmd_check(const std::vector<std::string>& rest) {
   const matep::Scene scene = matep::load_scene(a.scene, a.sets);
   for (const auto& w : scene.warnings) fmt::print(stderr, "warning: {}\n", w);
   fmt::print("{}", matep::describe_scene(scene));
-  fmt::print("scene is valid\n");
+  if (!a.resume.empty()) fmt::print("{}", matep::describe_checkpoint(scene, a.resume));
+  fmt::print("scene is valid{}\n", a.resume.empty() ? "" : " and the checkpoint continues it");
   return 0;
 }
 

@@ -21,7 +21,7 @@ struct RoughRules;
 
 enum class QueueKind { Calendar, Heap };
 
-// Runs the system from t = 0 to settings.end_time (or until it stops early). The system is taken
+// Runs the system from settings.start_time to settings.end_time (or until it stops early). The system is taken
 // by value: move it in to let the engine release its particle arrays once copied (memory).
 // Throws std::invalid_argument for systems the engine cannot represent (e.g. a periodic axis
 // shorter than three largest diameters).

@@ -45,7 +45,7 @@ struct HybridSettings {
 template <int D>
 SoftPlan hybrid_preflight(const System<D>& system, const HybridSettings& settings);
 
-// Runs the system from t = 0 to edm.end_time with the hybrid rule. Particles that overlap at
+// Runs the system from edm.start_time to edm.end_time with the hybrid rule. Particles that overlap at
 // t = 0 (a settled soft state) start soft; every other particle starts hard.
 // `plan`: the result of hybrid_preflight for this system and settings when the caller has it (io/
 // checks a scene once); null = planned here.

@@ -163,6 +163,7 @@ double ball_volume(double r);
 
 // Settings of an event-driven run (everything not part of the physical system).
 struct EdmSettings {
+  double start_time = 0.0;  // the time of the system's state (run.start_time): walls move in absolute time
   double end_time = 1.0;
   double tc = 0.0;                // TC model (Luding & McNamara 1998); 0 = off
   double thermo_interval = 0.0;   // 0 = only t = 0 and end

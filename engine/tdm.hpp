@@ -29,9 +29,10 @@
 namespace matep {
 
 struct TdmSettings {
+  double start_time = 0.0;  // the time of the system's state (run.start_time)
   double end_time = 1.0;
   double dt = 0.0;    // 0: the plan's default step. The step is then shortened so that a whole
-                      // number of steps ends exactly at end_time.
+                      // number of steps ends exactly at end_time (from start_time).
   double skin = 0.0;  // Verlet skin; 0: 0.1 of the largest diameter (LAMMPS' granular default)
   int threads = 0;    // 0: all cores (OMP_NUM_THREADS respected)
   double thermo_interval = 0.0;    // 0 = only t = 0 and the end
@@ -53,7 +54,7 @@ struct TdmSettings {
 template <int D>
 SoftPlan tdm_preflight(const System<D>& system, const TdmSettings& settings);
 
-// Runs the system from t = 0 to end_time. Throws std::invalid_argument for a system the soft
+// Runs the system from start_time to end_time. Throws std::invalid_argument for a system the soft
 // contact laws cannot describe (see plan_soft) or a time step above the stability limit; the
 // message names the material key or prints the limit.
 // `plan`: the result of tdm_preflight for this system and settings when the caller has it (io/

@@ -29,6 +29,7 @@ namespace {
 
 EdmSettings edm_settings(const Scene& s) {
   EdmSettings e;
+  e.start_time = s.start_time;
   e.end_time = s.end_time;
   e.tc = s.tc;
   e.thermo_interval = s.output.thermo_interval;
@@ -42,6 +43,7 @@ EdmSettings edm_settings(const Scene& s) {
 
 TdmSettings tdm_settings(const Scene& s) {
   TdmSettings t;
+  t.start_time = s.start_time;
   t.end_time = s.end_time;
   t.dt = s.dt.value_or(0.0);
   t.threads = s.threads.value_or(0);

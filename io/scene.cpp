@@ -1142,13 +1142,16 @@ Scene build_scene(toml::table& root, const std::string& file, const fs::path& ba
 
   // [run]
   const TableReader run = top.sub("run");
-  run.allow({"dimension", "method", "end_time", "seed", "gravity", "queue", "tc", "collapse_count",
+  run.allow({"dimension", "method", "start_time", "end_time", "seed", "gravity", "queue", "tc", "collapse_count",
              "collapse_window", "max_events", "dt", "threads"});
   const std::int64_t dim = run.integer("dimension");
   if (dim != 2 && dim != 3) run.fail("dimension", "must be 2 or 3", run.need("dimension"));
   scene.dimension = static_cast<int>(dim);
   scene.method = parse_method(run.string_opt("method", {"edm", "tdm", "hybrid"}).value_or("edm")).value_or(Method::Edm);
   scene.end_time = run.number("end_time", kPositive);
+  scene.start_time = run.number_or("start_time", 0.0, kNonNegative);
+  if (!(scene.start_time < scene.end_time))
+    run.fail("start_time", fmt::format("must be before run.end_time = {} (got {})", scene.end_time, scene.start_time));
   scene.seed = static_cast<std::uint64_t>(run.integer_or("seed", 1, kNonNegative));
   scene.queue = run.string_opt("queue", {"calendar", "heap"}).value_or("calendar");
   scene.tc = run.number_or("tc", 0.0, kNonNegative);
@@ -1194,6 +1197,12 @@ Scene build_scene(toml::table& root, const std::string& file, const fs::path& ba
   } else {
     build_system<3>(top, run, base_dir, scene);
   }
+  // A run that starts later (run.start_time): each inlet begins then at the earliest.
+  std::visit(
+      [&](auto& sys) {
+        for (auto& in : sys.inlets) in.start = std::max(in.start, scene.start_time);
+      },
+      scene.system);
   return scene;
 }
 

@@ -47,6 +47,7 @@ struct Scene {
   int dimension = 3;
   Method method = Method::Edm;    // run.method: "edm" | "tdm" | "hybrid"
   std::string queue = "calendar"; // "calendar" | "heap"
+  double start_time = 0.0;        // run.start_time: the time of the scene's state
   double end_time = 1.0;
   std::uint64_t seed = 1;
   double tc = 0.0;                // run.tc, TC model; 0 = off

@@ -117,6 +117,7 @@ class EdmCore {
     hi_ = sys.upper;
     L_ = hi_ - lo_;
     window_ = set_.collapse_window > 0.0 ? set_.collapse_window : 1e-9 * set_.end_time;
+    now_ = last_sample_time_ = last_snapshot_time_ = set_.start_time;
     // System events, in this order: thermo sampler, end of run, snapshots, then the extension's.
     sample_id_ = add_system_event("thermo", [this](double t) { return on_sample_event(t); });
     end_id_ = add_system_event("end", [this](double t) {
@@ -159,7 +160,7 @@ class EdmCore {
     for (int i = 0; i < N_; ++i) {
       hot_[i].x = sys.x[i];
       hot_[i].v = sys.v[i];
-      hot_[i].t = 0.0;
+      hot_[i].t = set_.start_time;
       hot_[i].R = sys.radius[i];
       rmax = std::max(rmax, sys.radius[i]);
     }
@@ -229,21 +230,18 @@ class EdmCore {
       if (snapshots_) rearm(snapshot_id_, snapshot_k_, set_.snapshot_interval);
       if (checkpoint_id_ >= 0) rearm(checkpoint_id_, checkpoint_k_, set_.checkpoint->interval);
     } else {
+      const double t0 = set_.start_time;
       derived().ext_start();
-      emit_sample(0.0, /*interval=*/0.0);
+      emit_sample(t0, /*interval=*/0.0);
       for (int i = 0; i < N_; ++i)
-        if (!is_fixed(i) && !is_removed(i) && derived().predicted(i)) predict(i, 0.0);
+        if (!is_fixed(i) && !is_removed(i) && derived().predicted(i)) predict(i, t0);
       for (std::size_t k = 0; k < clocks_.size(); ++k)
         if (clocks_[k].pending()) queue_->set(inlet_ids_[k], clocks_[k].next_time());
-      if (set_.thermo_interval > 0.0 && set_.thermo_interval < set_.end_time * (1.0 - 1e-12))
-        queue_->set(sample_id_, set_.thermo_interval);
       queue_->set(end_id_, set_.end_time);
-      if (snapshots_) {
-        emit_snapshot(0.0);
-        if (set_.snapshot_interval < set_.end_time * (1.0 - 1e-12)) queue_->set(snapshot_id_, set_.snapshot_interval);
-      }
-      if (checkpoint_id_ >= 0 && set_.checkpoint->interval < set_.end_time * (1.0 - 1e-12))
-        queue_->set(checkpoint_id_, set_.checkpoint->interval);
+      if (snapshots_) emit_snapshot(t0);
+      rearm(sample_id_, 1, set_.thermo_interval);
+      if (snapshots_) rearm(snapshot_id_, 1, set_.snapshot_interval);
+      if (checkpoint_id_ >= 0) rearm(checkpoint_id_, 1, set_.checkpoint->interval);
     }
 
     RunResult<D> res;
@@ -333,20 +331,21 @@ class EdmCore {
     emit_sample(t, t - last_sample_time_);
     last_sample_time_ = t;
     ++sample_k_;
-    const double next = static_cast<double>(sample_k_) * set_.thermo_interval;
+    const double next = set_.start_time + static_cast<double>(sample_k_) * set_.thermo_interval;
     // The end of the run writes its own row; skip a sample that would fall on it.
     if (next < set_.end_time * (1.0 - 1e-12)) queue_->set(sample_id_, next);
     return true;
   }
-  // Schedules recurring event id at its k-th time when it is due before the end and not queued.
+  // Schedules recurring event id at its k-th time (start_time + k interval) when it is due before the
+  // end and not queued.
   void rearm(int id, std::uint64_t k, double interval) {
     if (id < 0 || interval <= 0.0 || queue_->contains(id)) return;
-    const double next = static_cast<double>(k) * interval;
+    const double next = set_.start_time + static_cast<double>(k) * interval;
     if (next > now_ && next < set_.end_time * (1.0 - 1e-12)) queue_->set(id, next);
   }
   bool on_checkpoint_event(double t) {
     ++checkpoint_k_;
-    const double next = static_cast<double>(checkpoint_k_) * set_.checkpoint->interval;
+    const double next = set_.start_time + static_cast<double>(checkpoint_k_) * set_.checkpoint->interval;
     if (next < set_.end_time * (1.0 - 1e-12)) queue_->set(checkpoint_id_, next);
     save_checkpoint(t);
     return true;
@@ -424,7 +423,7 @@ class EdmCore {
     emit_snapshot(t);
     last_snapshot_time_ = t;
     ++snapshot_k_;
-    const double next = static_cast<double>(snapshot_k_) * set_.snapshot_interval;
+    const double next = set_.start_time + static_cast<double>(snapshot_k_) * set_.snapshot_interval;
     if (next < set_.end_time * (1.0 - 1e-12)) queue_->set(snapshot_id_, next);
     return true;
   }

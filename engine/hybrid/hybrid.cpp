@@ -294,10 +294,10 @@ class HybridEngine final : public edm::EdmCore<D, CalendarQueue, HybridEngine<D>
       alpha_.assign(N_, Spin<D>::Zero());
       tq_.assign(N_, Spin<D>::Zero());
     }
-    last_contact_.assign(N_, 0.0);
+    last_contact_.assign(N_, set_.start_time);
     quiet_checks_.assign(N_, 0);
     begun_n_.assign(N_, 0);
-    rate_t0_.assign(N_, 0.0);
+    rate_t0_.assign(N_, set_.start_time);
     cand_.assign(N_, 0);
     gslot_.assign(N_, 0);
     joined_by_.assign(N_, kByOverlap);
@@ -1242,7 +1242,7 @@ class HybridEngine final : public edm::EdmCore<D, CalendarQueue, HybridEngine<D>
     for (int i = 0; i < N_; ++i) {
       if (mode_[i] == kFixed || mode_[i] == kGone) continue;  // never soft (a moving grain overlapping it is)
       bool over = false;
-      for (const WallShape<D>* W : shapes_) over = over || W->at(hot_[i].x, hot_[i].R, 0.0).gap < 0.0;
+      for (const WallShape<D>* W : shapes_) over = over || W->at(hot_[i].x, hot_[i].R, set_.start_time).gap < 0.0;
       if (!over)
         for_neighbours(i, [&](int j, const Vec<D>& shift) {
           const double s = hot_[i].R + hot_[j].R;
@@ -1254,7 +1254,7 @@ class HybridEngine final : public edm::EdmCore<D, CalendarQueue, HybridEngine<D>
         pending_reason_.push_back(kByOverlap);
       }
     }
-    if (!pending_.empty()) start_clock(0.0);
+    if (!pending_.empty()) start_clock(set_.start_time);
   }
 
   // ---- rest rule: sleeping particles ----

@@ -184,6 +184,8 @@ class TdmEngine {
   std::string status_ = "ok", message_;
   bool stopping_ = false;  // a stop was requested (TdmSettings::stop): end at the next whole step
   std::uint64_t k_sample_ = 1, k_snap_ = 1, k_check_ = 1;  // the next thermo row, snapshot, checkpoint
+  double t0_ = 0.0;  // the time of step 0 (TdmSettings::start_time)
+  double step_time(std::uint64_t n) const { return t0_ + static_cast<double>(n) * dt_; }
 
   // Checkpoints (engine/state_archive.hpp): everything a step reads that an earlier step wrote,
   // saved at a whole step after its forces (what setup makes from the scene is made again).
@@ -254,7 +256,7 @@ class TdmEngine {
     if (!set_.checkpoint || !set_.checkpoint->save) return;
     StateWriter w;
     archive(w);
-    set_.checkpoint->save(static_cast<double>(steps_) * dt_, w.bytes);
+    set_.checkpoint->save(step_time(steps_), w.bytes);
   }
 };
 
@@ -271,7 +273,9 @@ double skin_of(const System<D>& sys, const TdmSettings& set) {
 
 template <int D>
 SoftPlan preflight(const System<D>& sys, const TdmSettings& set) {
-  if (!(set.end_time > 0.0)) throw std::invalid_argument(fmt::format("run.end_time: {} must be > 0", set.end_time));
+  if (!(set.end_time > set.start_time))
+    throw std::invalid_argument(fmt::format("run.end_time: {} must be after run.start_time = {}", set.end_time,
+                                            set.start_time));
   SoftPlan plan = plan_soft<D>(sys);
   if (set.dt > 0.0 && set.dt > plan.max_stable_dt)
     throw std::invalid_argument(fmt::format(
@@ -299,11 +303,14 @@ void TdmEngine<D>::setup() {
   n_fixed_ = sys_.fixed_count();
   if (n_fixed_ > 0) fixed_ = sys_.fixed;
   plan_ = given_plan_ ? *given_plan_ : preflight(sys_, set_);
-  const double dt = set_.dt > 0.0 ? set_.dt : (plan_.default_dt > 0.0 ? plan_.default_dt : set_.end_time);
+  t0_ = set_.start_time;
+  const double span = set_.end_time - t0_;
+  const double dt = set_.dt > 0.0 ? set_.dt : (plan_.default_dt > 0.0 ? plan_.default_dt : span);
   // A whole number of steps ends exactly at end_time (the step only shortens).
-  const double n = std::ceil(set_.end_time / dt * (1.0 - 1e-12));
-  dt_ = set_.end_time / std::max(1.0, n);
+  const double n = std::ceil(span / dt * (1.0 - 1e-12));
+  dt_ = span / std::max(1.0, n);
   hdt_ = 0.5 * dt_;
+  last_sample_t_ = t0_;
   const double dmax = largest_diameter(sys_);
   skin_ = skin_of(sys_, set_);
   half_skin2_ = 0.25 * skin_ * skin_;
@@ -400,7 +407,7 @@ void TdmEngine<D>::set_ranges() {
 // observers with its half-step velocity). Returns whether any did (the arrays then need a rebuild).
 template <int D>
 bool TdmEngine<D>::scan_outlets() {
-  const double t = static_cast<double>(steps_) * dt_;
+  const double t = step_time(steps_);
   bool any = false;
   for (std::size_t i = 0; i < N_; ++i) {
     if (is_fixed(i)) continue;
@@ -456,7 +463,7 @@ void TdmEngine<D>::drop_gone() {
 // that has flown freely). Returns whether any did (the lists then need a rebuild).
 template <int D>
 bool TdmEngine<D>::insert_due() {
-  const double t = static_cast<double>(steps_) * dt_;
+  const double t = step_time(steps_);
   bool any = false;
   for (std::size_t k = 0; k < clocks_.size(); ++k) {
     InletClock<D>& c = clocks_[k];
@@ -563,7 +570,7 @@ void TdmEngine<D>::rebuild() {
         x[k] = wrap_periodic(x[k], sys_.lower[k], sys_.upper[k]);
       } else if (x[k] < sys_.lower[k] || x[k] > sys_.upper[k]) {
         status_ = "escaped";
-        message_ = escape_message(id_[i], k, static_cast<double>(steps_) * dt_, x[k]);
+        message_ = escape_message(id_[i], k, step_time(steps_), x[k]);
         return;
       }
     }
@@ -672,7 +679,7 @@ void TdmEngine<D>::rebuild() {
   wl_i_.clear();
   wl_w_.clear();
   wl_f_.clear();
-  const double t_now = static_cast<double>(steps_) * dt_;
+  const double t_now = step_time(steps_);
   std::vector<std::uint32_t> feats;
   for (std::size_t i = 0; i < N_; ++i) {
     if (is_fixed(i)) continue;  // a fixed grain meets no wall
@@ -831,7 +838,7 @@ void TdmEngine<D>::forces(bool fuse) {
   for (auto& a : acc_t_) a = Acc{};
   // Walls at this step: the forces of step n are evaluated at t_n = steps_ dt; a moving surface's
   // velocity is taken at t_n (with the predicted velocities) and t_n - h/2 (with the half-step ones).
-  wall_t_ = static_cast<double>(steps_) * dt_;
+  wall_t_ = step_time(steps_);
   walls_.refresh(wall_t_, hdt_);
   auto body = [&](int t) {
     switch (law_) {
@@ -983,7 +990,7 @@ RunResult<D> TdmEngine<D>::run() {
   RunResult<D> res;
   res.method = Method::Tdm;
   const std::uint64_t nsteps =
-      N_ == 0 && clocks_.empty() ? 0 : static_cast<std::uint64_t>(std::llround(set_.end_time / dt_));
+      N_ == 0 && clocks_.empty() ? 0 : static_cast<std::uint64_t>(std::llround((set_.end_time - t0_) / dt_));
   auto step_of = [&](double interval, std::uint64_t k) {
     return static_cast<std::uint64_t>(std::llround(static_cast<double>(k) * interval / dt_));
   };
@@ -1011,7 +1018,7 @@ RunResult<D> TdmEngine<D>::run() {
     if (now) save_checkpoint();
   };
   auto emit = [&](std::uint64_t n, bool last) {
-    const double t = static_cast<double>(n) * dt_;
+    const double t = step_time(n);
     bool do_sample = n == 0 || last;
     if (set_.thermo_interval > 0.0 && n > 0) {
       while (step_of(set_.thermo_interval, k_sample) <= n) {
@@ -1042,7 +1049,7 @@ RunResult<D> TdmEngine<D>::run() {
       message_ = fmt::format("an overlap reached {:.3g} of the contact distance at t = {}: either the time step {} "
                              "is too long for the contact stiffness (stability limit {:.6g}; default step {:.6g}) "
                              "or the contacts are too soft for the impacts (raise stiffness or young)",
-                             max_rel_, steps_ * dt_, dt_, plan_.max_stable_dt, plan_.default_dt);
+                             max_rel_, step_time(steps_), dt_, plan_.max_stable_dt, plan_.default_dt);
     }
   };
   auto after_move = [&] {
@@ -1056,7 +1063,7 @@ RunResult<D> TdmEngine<D>::run() {
     if (sweep_ > 0.0 && sweep_ * static_cast<double>(steps_ - build_step_) * dt_ > 0.5 * skin_) moved = true;
     if (moved && status_ == "ok") rebuild();
     if ((steps_ & 1023) == 0)
-      for (auto* o : obs_) o->on_progress(steps_ * dt_, steps_);
+      for (auto* o : obs_) o->on_progress(step_time(steps_), steps_);
     if ((steps_ & 15) == 0 && set_.stop && set_.stop->load(std::memory_order_relaxed)) stopping_ = true;
   };
 
@@ -1115,19 +1122,19 @@ RunResult<D> TdmEngine<D>::run() {
     // A stop request (a signal) ends the run here, at a whole step, with its last row and snapshot.
     if (stopping_ && status_ == "ok" && steps_ < nsteps) {
       status_ = "interrupted";
-      message_ = fmt::format("stopped on request at t = {:.17g}", steps_ * dt_);
+      message_ = fmt::format("stopped on request at t = {:.17g}", step_time(steps_));
     }
     if (status_ == "ok" || status_ == "interrupted") checkpoint(steps_, steps_ >= nsteps || status_ != "ok");
     emit(steps_, steps_ >= nsteps || status_ != "ok");
   }
   if (status_ == "ok" && steps_ < nsteps) {
     status_ = "max_steps";
-    message_ = fmt::format("stopped after {} steps at t = {} (max_steps)", steps_, steps_ * dt_);
+    message_ = fmt::format("stopped after {} steps at t = {} (max_steps)", steps_, step_time(steps_));
   }
 
   res.status = status_;
   res.message = message_;
-  res.time = static_cast<double>(steps_) * dt_;
+  res.time = step_time(steps_);
   res.counts.pair = pair_begun_;
   res.counts.wall = wall_begun_;
   Snapshot<D> last = snapshot(res.time);  // the final state in particle-id order

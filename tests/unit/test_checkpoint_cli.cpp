@@ -191,6 +191,16 @@ TEST(CheckpointCli, AnotherSceneVersionMethodOrACorruptFileIsRefusedNamingWhatDi
     ASSERT_EQ(full.code, 0);
     EXPECT_EQ(slurp(longer / "final_state.csv"), slurp(root / "full" / "final_state.csv"));
   }
+  // matep check --resume: whole and for this scene, or not.
+  {
+    const auto ok = run_cli("check " + scene + " --set run.end_time=0.5 --resume " + ck.string());
+    EXPECT_EQ(ok.code, 0) << ok.out;
+    EXPECT_NE(ok.out.find("a \"edm\" run at t = 0.5; continues thermo.csv"), std::string::npos) << ok.out;
+    EXPECT_NE(ok.out.find("scene is valid and the checkpoint continues it"), std::string::npos) << ok.out;
+    const auto other = run_cli("check " + scene + " --set run.end_time=0.5 --set run.seed=3 --resume " + ck.string());
+    EXPECT_EQ(other.code, 2) << other.out;
+    EXPECT_NE(other.out.find("run.seed: checkpoint 7, this scene 3"), std::string::npos) << other.out;
+  }
   // Another scene: the key that differs, both values.
   expect_refused("run " + scene + " --set run.end_time=0.5 --set material.hard.restitution=0.8" + resume + ck.string(),
                  d, "written for another scene than " + scene + ": material.hard.restitution: checkpoint 1.0, this scene 0.8");

@@ -282,6 +282,12 @@ SoftPlan preflight(const System<D>& sys, const TdmSettings& set) {
         "run.dt: {} is above the stability limit {:.6g} of velocity Verlet for the stiffest contact "
         "({}, at impact speed {:.4g}); use run.dt <= {:.6g} (the default is {:.6g})",
         set.dt, plan.max_stable_dt, plan.limiting, plan.impact_speed, plan.max_stable_dt, plan.default_dt));
+  // The step count must fit a counter (and a run that long would never end anyway).
+  const double dt = set.dt > 0.0 ? set.dt : plan.default_dt;
+  if (dt > 0.0 && !((set.end_time - set.start_time) / dt < 1e15))
+    throw std::invalid_argument(fmt::format("run.dt: {} gives {:.3g} steps to run.end_time = {}; at most 1e15 (use a "
+                                            "longer step or a shorter run)",
+                                            dt, (set.end_time - set.start_time) / dt, set.end_time));
   check_periodic_axes<D>(sys.lower, sys.upper, sys.periodic, largest_diameter(sys), skin_of(sys, set));
   return plan;
 }

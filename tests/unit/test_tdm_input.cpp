@@ -228,3 +228,8 @@ TEST(TdmInput, ParticleFilesMayOverlapSlightlyForSoftSpheres) {
   EXPECT_NEAR(vx(b), std::sqrt(2.0), 0.01);
   fs::remove_all(dir);
 }
+
+TEST(TdmInput, AStepThatGivesMoreStepsThanACounterHoldsIsRefused) {
+  const std::string m = refusal(pair_scene(kLinear, 2.0, "dt = 1e-300\n"));
+  EXPECT_TRUE(has(m, "run.dt: 1e-300 gives 5e+298 steps to run.end_time = 0.05; at most 1e15")) << m;
+}

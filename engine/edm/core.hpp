@@ -341,7 +341,7 @@ class EdmCore {
   void rearm(int id, std::uint64_t k, double interval) {
     if (id < 0 || interval <= 0.0 || queue_->contains(id)) return;
     const double next = set_.start_time + static_cast<double>(k) * interval;
-    if (next > now_ && next < set_.end_time * (1.0 - 1e-12)) queue_->set(id, next);
+    if (next >= now_ && next < set_.end_time * (1.0 - 1e-12)) queue_->set(id, next);
   }
   bool on_checkpoint_event(double t) {
     ++checkpoint_k_;

@@ -190,6 +190,17 @@ TEST(CheckpointCli, AnotherSceneVersionMethodOrACorruptFileIsRefusedNamingWhatDi
     const auto full = run_cli("run " + scene + " --set run.end_time=0.7 --quiet --out " + (root / "full").string());
     ASSERT_EQ(full.code, 0);
     EXPECT_EQ(slurp(longer / "final_state.csv"), slurp(root / "full" / "final_state.csv"));
+    // Its rows carry on at the same interval.
+    auto times = [](const std::string& csv) {
+      std::vector<std::string> t;
+      std::size_t at = csv.find('\n') + 1;
+      while (at < csv.size()) {
+        t.push_back(csv.substr(at, csv.find(',', at) - at));
+        at = csv.find('\n', at) + 1;
+      }
+      return t;
+    };
+    EXPECT_EQ(times(slurp(longer / "thermo.csv")), times(slurp(root / "full" / "thermo.csv")));
   }
   // matep check --resume: whole and for this scene, or not.
   {

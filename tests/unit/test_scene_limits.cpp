@@ -207,6 +207,11 @@ TEST(SceneLimits, AnOutputPlanAboveMaxBytesIsRefusedNamingTheLargestPart) {
   EXPECT_NE(events.find("output.events"), std::string::npos) << events;
   EXPECT_NE(events.find("Enskog"), std::string::npos) << events;
   EXPECT_EQ(what_of(gas("events = true\nmax_bytes = 1e8\n")), "");
+  // The checkpoint at the end: 2744 grains at 500 bytes (EDM) is 1.4 MB.
+  const std::string ckpt = what_of(gas("max_bytes = 1e6\n"));
+  EXPECT_NE(ckpt.find("output.checkpoint_interval"), std::string::npos) << ckpt;
+  EXPECT_NE(ckpt.find("checkpoint.bin: 2744 grain slots"), std::string::npos) << ckpt;
+  EXPECT_EQ(what_of(gas("max_bytes = 2e6\n")), "");
   expect_scene_error(gas("max_bytes = 0\n"), "s.toml", ".", {"output.max_bytes", "must be > 0"});
 }
 

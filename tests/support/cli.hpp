@@ -1,17 +1,23 @@
 // Test helpers for running the matep command line and reading what it wrote.
 #pragma once
 
+#include <fcntl.h>
+#include <spawn.h>
 #include <sys/wait.h>
 #include <unistd.h>
 
 #include <array>
+#include <chrono>
 #include <csignal>
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
 #include <sstream>
 #include <string>
+#include <thread>
 #include <vector>
+
+extern char** environ;
 
 namespace matep::test {
 
@@ -85,5 +91,39 @@ inline std::filesystem::path fresh_dir(const std::string& name) {
 }
 
 inline const std::string kCasesDir = std::string(MATEP_SOURCE_DIR) + "/cases/";
+
+// `matep ARGS` started in the background, its stdout and stderr into `log`; its pid (-1: not started).
+inline pid_t spawn_cli(const std::vector<std::string>& args, const std::filesystem::path& log) {
+  std::vector<std::string> all{MATEP_CLI};
+  all.insert(all.end(), args.begin(), args.end());
+  std::vector<char*> argv;
+  for (auto& a : all) argv.push_back(a.data());
+  argv.push_back(nullptr);
+  posix_spawn_file_actions_t fa;
+  posix_spawn_file_actions_init(&fa);
+  posix_spawn_file_actions_addopen(&fa, 1, log.c_str(), O_WRONLY | O_CREAT | O_TRUNC, 0644);
+  posix_spawn_file_actions_adddup2(&fa, 1, 2);
+  pid_t pid = -1;
+  const int rc = posix_spawn(&pid, MATEP_CLI, &fa, nullptr, argv.data(), environ);
+  posix_spawn_file_actions_destroy(&fa);
+  return rc == 0 ? pid : -1;
+}
+
+// Waits for it; the exit status, or -signal when a signal ended it.
+inline int wait_exit(pid_t pid) {
+  int st = 0;
+  if (waitpid(pid, &st, 0) != pid) return -1000;
+  return WIFEXITED(st) ? WEXITSTATUS(st) : -WTERMSIG(st);
+}
+
+// Waits until `p` exists (at most `limit` seconds).
+inline bool wait_for(const std::filesystem::path& p, double limit = 60.0) {
+  const auto t0 = std::chrono::steady_clock::now();
+  while (!std::filesystem::exists(p)) {
+    if (std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count() > limit) return false;
+    std::this_thread::sleep_for(std::chrono::milliseconds(5));
+  }
+  return true;
+}
 
 }  // namespace matep::test

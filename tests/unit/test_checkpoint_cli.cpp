@@ -3,10 +3,7 @@
 // a checkpoint of another scene, version or method, a corrupt or cut one, is refused naming what
 // differs, and nothing already written is lost.
 #include <gtest/gtest.h>
-#include <fcntl.h>
 #include <signal.h>
-#include <spawn.h>
-#include <sys/wait.h>
 #include <unistd.h>
 
 #include <chrono>
@@ -21,46 +18,16 @@
 #include "io/checkpoint.hpp"
 #include "tests/support/cli.hpp"
 
-extern char** environ;
-
 namespace fs = std::filesystem;
 
 namespace {
 
 using matep::test::run_cli;
+using matep::test::spawn_cli;
+using matep::test::wait_exit;
+using matep::test::wait_for;
 using matep::test::slurp;
 const std::string& kCases = matep::test::kCasesDir;
-
-pid_t spawn_cli(const std::vector<std::string>& args, const fs::path& log) {
-  std::vector<std::string> all{MATEP_CLI};
-  all.insert(all.end(), args.begin(), args.end());
-  std::vector<char*> argv;
-  for (auto& a : all) argv.push_back(a.data());
-  argv.push_back(nullptr);
-  posix_spawn_file_actions_t fa;
-  posix_spawn_file_actions_init(&fa);
-  posix_spawn_file_actions_addopen(&fa, 1, log.c_str(), O_WRONLY | O_CREAT | O_TRUNC, 0644);
-  posix_spawn_file_actions_adddup2(&fa, 1, 2);
-  pid_t pid = -1;
-  const int rc = posix_spawn(&pid, MATEP_CLI, &fa, nullptr, argv.data(), environ);
-  posix_spawn_file_actions_destroy(&fa);
-  return rc == 0 ? pid : -1;
-}
-
-int wait_exit(pid_t pid) {
-  int st = 0;
-  if (waitpid(pid, &st, 0) != pid) return -1000;
-  return WIFEXITED(st) ? WEXITSTATUS(st) : -WTERMSIG(st);
-}
-
-bool wait_for(const fs::path& p, double limit = 60.0) {
-  const auto t0 = std::chrono::steady_clock::now();
-  while (!fs::exists(p)) {
-    if (std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count() > limit) return false;
-    std::this_thread::sleep_for(std::chrono::milliseconds(5));
-  }
-  return true;
-}
 
 std::vector<std::string> words(const std::string& s) {
   std::vector<std::string> out;

@@ -130,20 +130,15 @@ EdmSettings edm_set(double end, double thermo) {
 
 TEST(CheckpointEngines, EdmGasResumesBitForBit) {
   const System<3> sys = lattice_gas<3>(6, 0.3, 1.0, 0.9, 11);
-  auto run = [&](const CheckpointHooks* h, std::atomic<bool>* stop, Observer<3>* obs) {
-    EdmSettings s = edm_set(20.0, 0.25);
-    s.checkpoint = h;
-    s.stop = stop;
-    return run_edm<3>(sys, s, QueueKind::Calendar, {obs});
-  };
-  check_resume<3>(run, 1, "edm 3D calendar");
-  auto heap = [&](const CheckpointHooks* h, std::atomic<bool>* stop, Observer<3>* obs) {
-    EdmSettings s = edm_set(20.0, 0.25);
-    s.checkpoint = h;
-    s.stop = stop;
-    return run_edm<3>(sys, s, QueueKind::Heap, {obs});
-  };
-  check_resume<3>(heap, 2, "edm 3D heap");
+  for (const QueueKind q : {QueueKind::Calendar, QueueKind::Heap}) {
+    auto run = [&](const CheckpointHooks* h, std::atomic<bool>* stop, Observer<3>* obs) {
+      EdmSettings s = edm_set(20.0, 0.25);
+      s.checkpoint = h;
+      s.stop = stop;
+      return run_edm<3>(sys, s, q, {obs});
+    };
+    check_resume<3>(run, q == QueueKind::Calendar ? 1 : 2, q == QueueKind::Calendar ? "edm 3D calendar" : "edm 3D heap");
+  }
 }
 
 TEST(CheckpointEngines, EdmIntervalCheckpointsDoNotChangeTheRun) {

@@ -2,10 +2,7 @@
 // writes, a folder replaced only by a complete new set, the lock against a second run, and
 // SIGINT / SIGTERM stopping each method at a whole step with every output written.
 #include <gtest/gtest.h>
-#include <fcntl.h>
 #include <signal.h>
-#include <spawn.h>
-#include <sys/wait.h>
 #include <unistd.h>
 
 #include <chrono>
@@ -21,49 +18,16 @@
 #include "io/run_folder.hpp"
 #include "tests/support/cli.hpp"
 
-extern char** environ;
-
 namespace fs = std::filesystem;
 
 namespace {
 
 using matep::test::run_cli;
+using matep::test::spawn_cli;
+using matep::test::wait_exit;
+using matep::test::wait_for;
 using matep::test::slurp;
 const std::string& kCases = matep::test::kCasesDir;
-
-// `matep ARGS` started in the background, its stdout and stderr into `log`.
-pid_t spawn_cli(const std::vector<std::string>& args, const fs::path& log) {
-  std::vector<std::string> all{MATEP_CLI};
-  all.insert(all.end(), args.begin(), args.end());
-  std::vector<char*> argv;
-  for (auto& a : all) argv.push_back(a.data());
-  argv.push_back(nullptr);
-  posix_spawn_file_actions_t fa;
-  posix_spawn_file_actions_init(&fa);
-  posix_spawn_file_actions_addopen(&fa, 1, log.c_str(), O_WRONLY | O_CREAT | O_TRUNC, 0644);
-  posix_spawn_file_actions_adddup2(&fa, 1, 2);
-  pid_t pid = -1;
-  const int rc = posix_spawn(&pid, MATEP_CLI, &fa, nullptr, argv.data(), environ);
-  posix_spawn_file_actions_destroy(&fa);
-  return rc == 0 ? pid : -1;
-}
-
-// Waits for it; the exit status, or -signal when a signal ended it.
-int wait_exit(pid_t pid) {
-  int st = 0;
-  if (waitpid(pid, &st, 0) != pid) return -1000;
-  return WIFEXITED(st) ? WEXITSTATUS(st) : -WTERMSIG(st);
-}
-
-// Waits until `p` exists (at most `limit` seconds).
-bool wait_for(const fs::path& p, double limit = 30.0) {
-  const auto t0 = std::chrono::steady_clock::now();
-  while (!fs::exists(p)) {
-    if (std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count() > limit) return false;
-    std::this_thread::sleep_for(std::chrono::milliseconds(10));
-  }
-  return true;
-}
 
 // The value of a top-level number or string key of summary.json ("" when absent).
 std::string summary_value(const std::string& json, const std::string& key) {

@@ -9,6 +9,7 @@
 #include <cstdint>
 #include <cstdio>
 #include <cstring>
+#include <unistd.h>
 #include <iterator>
 #include <string>
 #include <string_view>
@@ -72,6 +73,11 @@ class CheckedFile {
   }
   void flush() {
     if (std::fflush(f_) != 0) fail();
+  }
+  // Flushed and on the disk (fsync): for a file renamed into place as whole.
+  void sync() {
+    flush();
+    if (::fsync(::fileno(f_)) != 0) fail();
   }
   // Flushes and closes; throws on the first error the OS reports (also one held back by stdio).
   void close() {

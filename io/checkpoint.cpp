@@ -1,8 +1,6 @@
 #include "io/checkpoint.hpp"
 
-#include <fcntl.h>
 #include <fmt/format.h>
-#include <unistd.h>
 
 #include <algorithm>
 #include <cerrno>
@@ -29,7 +27,6 @@ void Checkpoint::archive(A& a) {
   a(dimension);
   a(scene);
   a(time);
-  a(threads);
   a.tag("outputs");
   a(thermo);
   bool has = outflow.has_value();
@@ -72,12 +69,7 @@ void write_checkpoint(const std::string& path, const Checkpoint& c) {
   {
     CheckedFile f(tmp, "wb");
     f.write(out.data(), out.size());
-    f.flush();
-    const int fd = ::open(tmp.c_str(), O_RDONLY);
-    if (fd >= 0) {
-      ::fsync(fd);
-      ::close(fd);
-    }
+    f.sync();
     f.close();
   }
   std::error_code ec;

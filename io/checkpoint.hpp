@@ -28,7 +28,6 @@ struct Checkpoint {
   std::uint32_t dimension = 3;
   std::string scene;         // the scene as canonical TOML (overrides applied)
   double time = 0.0;         // the simulated time it was saved at
-  std::uint64_t threads = 0; // the soft loops' thread count (0: not a soft run)
   FileMark thermo;
   std::optional<FileMark> outflow;
   std::optional<EventLogMark> events;

@@ -77,6 +77,29 @@ void expect_same_result(const RunResult<D>& a, const RunResult<D>& b) {
   EXPECT_EQ(a.mode, b.mode);
 }
 
+// Hooks that keep every state the run saves (every `interval`, at a stop, at the end), marking
+// the trace at each.
+template <int D>
+struct Keeper {
+  std::vector<std::vector<std::uint8_t>> states;
+  CheckpointHooks hooks;
+  Keeper(Trace<D>& trace, double interval) {
+    hooks.interval = interval;
+    hooks.save = [this, &trace](double, const std::vector<std::uint8_t>& st) {
+      states.push_back(st);
+      trace.mark();
+    };
+  }
+  Keeper(const Keeper&) = delete;
+};
+
+// The first `cut` values of a run's reports, then those of the run that continued it.
+std::vector<double> joined(const std::vector<double>& first, std::size_t cut, const std::vector<double>& rest) {
+  std::vector<double> out(first.begin(), first.begin() + static_cast<std::ptrdiff_t>(cut));
+  out.insert(out.end(), rest.begin(), rest.end());
+  return out;
+}
+
 // A run of one method: `run(settings hooks, observers)`.
 // Stopped after a random number of collisions (samples for TDM), at most 3/4 of the run's.
 template <int D, class Run>
@@ -94,28 +117,20 @@ void check_resume(Run&& run, std::uint64_t seed, const char* what) {
     std::atomic<bool> stop{false};
     const std::uint64_t after = 1 + rng() % unit_max;
     Trace<D> first(&stop, after, by_collisions);
-    std::vector<std::uint8_t> state;
-    double t_saved = -1.0;
-    CheckpointHooks save;
-    save.save = [&](double t, const std::vector<std::uint8_t>& s) {
-      state = s;
-      t_saved = t;
-      first.mark();
-    };
-    const RunResult<D> part = run(&save, &stop, &first);
+    Keeper<D> saved(first, 0.0);
+    const RunResult<D> part = run(&saved.hooks, &stop, &first);
     ASSERT_EQ(part.status, "interrupted");
-    ASSERT_FALSE(state.empty());
-    ASSERT_EQ(first.cuts.size(), 1u);
-    EXPECT_GT(t_saved, 0.0);
+    ASSERT_EQ(saved.states.size(), 1u);
+    ASSERT_FALSE(saved.states[0].empty());
+    EXPECT_GT(part.time, 0.0);
     // Continued from it.
     Trace<D> rest;
     CheckpointHooks resume;
-    resume.resume = &state;
+    resume.resume = &saved.states[0];
     const RunResult<D> cont = run(&resume, nullptr, &rest);
-    std::vector<double> joined(first.values.begin(), first.values.begin() + static_cast<std::ptrdiff_t>(first.cuts[0]));
-    joined.insert(joined.end(), rest.values.begin(), rest.values.end());
-    ASSERT_EQ(joined.size(), whole.values.size());
-    EXPECT_EQ(std::memcmp(joined.data(), whole.values.data(), joined.size() * sizeof(double)), 0)
+    const std::vector<double> both = joined(first.values, first.cuts[0], rest.values);
+    ASSERT_EQ(both.size(), whole.values.size());
+    EXPECT_EQ(std::memcmp(both.data(), whole.values.data(), both.size() * sizeof(double)), 0)
         << "the continued run's reports differ from the uninterrupted run's";
     expect_same_result(cont, ref);
   }
@@ -147,15 +162,10 @@ TEST(CheckpointEngines, EdmIntervalCheckpointsDoNotChangeTheRun) {
   EdmSettings s = edm_set(2.0, 0.1);
   const RunResult<2> ref = run_edm<2>(sys, s, QueueKind::Calendar, {&plain});
   // Every 0.3: six states; each continued gives the uninterrupted run.
-  std::vector<std::vector<std::uint8_t>> states;
   Trace<2> with;
-  CheckpointHooks every;
-  every.interval = 0.3;
-  every.save = [&](double, const std::vector<std::uint8_t>& st) {
-    states.push_back(st);
-    with.mark();
-  };
-  s.checkpoint = &every;
+  Keeper<2> every(with, 0.3);
+  const auto& states = every.states;
+  s.checkpoint = &every.hooks;
   const RunResult<2> r = run_edm<2>(sys, s, QueueKind::Calendar, {&with});
   ASSERT_EQ(states.size(), 7u);  // 0.3 ... 1.8, and the end
   EXPECT_EQ(with.values, plain.values);
@@ -164,13 +174,11 @@ TEST(CheckpointEngines, EdmIntervalCheckpointsDoNotChangeTheRun) {
     SCOPED_TRACE(::testing::Message() << "checkpoint " << k);
     Trace<2> rest;
     CheckpointHooks resume;  // with the interval of the run that saved it (its events are in the state)
-    resume.interval = every.interval;
+    resume.interval = every.hooks.interval;
     resume.resume = &states[k];
     s.checkpoint = &resume;
     const RunResult<2> cont = run_edm<2>(sys, s, QueueKind::Calendar, {&rest});
-    std::vector<double> joined(plain.values.begin(), plain.values.begin() + static_cast<std::ptrdiff_t>(with.cuts[k]));
-    joined.insert(joined.end(), rest.values.begin(), rest.values.end());
-    EXPECT_EQ(joined, plain.values);
+    EXPECT_EQ(joined(plain.values, with.cuts[k], rest.values), plain.values);
     expect_same_result(cont, ref);
   }
 }
@@ -282,15 +290,10 @@ TEST(CheckpointEngines, HybridPourResumedMidSettling) {
   Trace<3> plain;
   const RunResult<3> ref = run_case<3>(sc, sys, nullptr, nullptr, &plain);
   ASSERT_GT(ref.hybrid.slept, 0u);
-  std::vector<std::vector<std::uint8_t>> states;
   Trace<3> with;
-  CheckpointHooks every;
-  every.interval = 0.1;
-  every.save = [&](double, const std::vector<std::uint8_t>& st) {
-    states.push_back(st);
-    with.mark();
-  };
-  const RunResult<3> r = run_case<3>(sc, sys, &every, nullptr, &with);
+  Keeper<3> every(with, 0.1);
+  const auto& states = every.states;
+  const RunResult<3> r = run_case<3>(sc, sys, &every.hooks, nullptr, &with);
   ASSERT_EQ(states.size(), 5u);  // 0.1 ... 0.4, and the end
   EXPECT_EQ(with.values, plain.values);
   expect_same_result(r, ref);
@@ -298,12 +301,10 @@ TEST(CheckpointEngines, HybridPourResumedMidSettling) {
     SCOPED_TRACE(::testing::Message() << "checkpoint " << k);
     Trace<3> rest;
     CheckpointHooks resume;
-    resume.interval = every.interval;
+    resume.interval = every.hooks.interval;
     resume.resume = &states[k];
     const RunResult<3> cont = run_case<3>(sc, sys, &resume, nullptr, &rest);
-    std::vector<double> joined(plain.values.begin(), plain.values.begin() + static_cast<std::ptrdiff_t>(with.cuts[k]));
-    joined.insert(joined.end(), rest.values.begin(), rest.values.end());
-    EXPECT_EQ(joined, plain.values);
+    EXPECT_EQ(joined(plain.values, with.cuts[k], rest.values), plain.values);
     expect_same_result(cont, ref);
     EXPECT_EQ(cont.hybrid.slept, ref.hybrid.slept);
     EXPECT_EQ(cont.hybrid.woken, ref.hybrid.woken);

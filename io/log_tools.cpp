@@ -411,7 +411,8 @@ FilterResult filter_log(const std::string& in, const std::string& out, const Log
   if (csv)
     text = csv_header() + "\n";
   else
-    enc.emplace(o.get(), out, h.dimension, h.particles, h.fixed_grains());
+    enc.emplace(o.get(), out, h.dimension, h.particles, h.fixed_grains(), kEventLogBlockRecords,
+                reader.identity().group.empty() && h.version < kEventLogVersionIdentity ? nullptr : &reader.identity());
 
   FilterResult res;
   EventRecord rec;

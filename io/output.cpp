@@ -48,25 +48,6 @@ double get_f64(const unsigned char* p) {
 }
 void get_v3(const unsigned char* p, double* v) { std::memcpy(v, p, 24); }
 
-template <int D>
-void to3(const Vec<D>& v, double* out) {
-  out[0] = v[0];
-  out[1] = v[1];
-  out[2] = D == 3 ? v[D - 1] : 0.0;
-}
-template <int D>
-void spin3(const Spin<D>& w, double* out) {
-  if constexpr (D == 2) {
-    out[0] = 0.0;
-    out[1] = 0.0;
-    out[2] = w[0];
-  } else {
-    out[0] = w[0];
-    out[1] = w[1];
-    out[2] = w[2];
-  }
-}
-
 // Field offsets of the version-1 record (README: "Event log").
 constexpr std::size_t kOffTime = 0, kOffKind = 8, kOffI = 12, kOffJ = 16, kOffMi = 24,
                       kOffMj = 32, kOffE = 40, kOffNormal = 48, kOffViB = 72, kOffVjB = 96,
@@ -186,14 +167,14 @@ bool has_blocks(const EventLogHeader& h) { return h.version >= kEventLogVersionC
 }  // namespace
 
 std::uint64_t record_offset(const EventLogHeader& h, std::uint64_t index) {
-  if (!has_blocks(h)) return kEventLogHeaderSize + index * kEventRecordSize;
+  if (!has_blocks(h)) return h.data_offset + index * kEventRecordSize;
   const std::uint64_t k = h.block_records;
-  return kEventLogHeaderSize + (index / k) * block_bytes(h) + (index % k) * kEventRecordSize;
+  return h.data_offset + (index / k) * block_bytes(h) + (index % k) * kEventRecordSize;
 }
 
 std::uint64_t block_offset(const EventLogHeader& h, std::uint64_t index) {
   if (!has_blocks(h)) return record_offset(h, index);
-  return kEventLogHeaderSize + (index / h.block_records) * block_bytes(h);
+  return h.data_offset + (index / h.block_records) * block_bytes(h);
 }
 
 std::string check_event_record(const EventRecord& r, const EventLogHeader& h) {
@@ -222,6 +203,71 @@ std::string check_event_record(const EventRecord& r, const EventLogHeader& h) {
   if (r.i >= h.particles) return fmt::format("i = {} (the log has {} particles)", r.i, h.particles);
   if (pair && r.j >= h.particles) return fmt::format("j = {} (the log has {} particles)", r.j, h.particles);
   return {};
+}
+
+// ---- event log identity (version 4) ----------------------------------------------------------
+
+std::vector<unsigned char> encode_event_identity(const EventLogIdentity& id) {
+  if (id.groups.size() > 65535 || id.materials.size() > 65535 || id.group.size() != id.material.size())
+    throw std::invalid_argument("event log identity: more than 65535 groups or materials");
+  std::vector<unsigned char> b(kEventIdentityMagic, kEventIdentityMagic + 8);
+  auto u16 = [&](std::size_t v) {
+    b.push_back(static_cast<unsigned char>(v & 0xff));
+    b.push_back(static_cast<unsigned char>(v >> 8));
+  };
+  auto u32 = [&](std::uint32_t v) {
+    for (int k = 0; k < 4; ++k) b.push_back(static_cast<unsigned char>(v >> (8 * k)));
+  };
+  u32(static_cast<std::uint32_t>(id.groups.size()));
+  u32(static_cast<std::uint32_t>(id.materials.size()));
+  for (const auto* names : {&id.groups, &id.materials})
+    for (const std::string& n : *names) {
+      if (n.size() > 65535) throw std::invalid_argument("event log identity: a name longer than 65535 bytes");
+      u16(n.size());
+      b.insert(b.end(), n.begin(), n.end());
+    }
+  for (std::size_t i = 0; i < id.group.size(); ++i) {
+    u16(id.group[i]);
+    u16(id.material[i]);
+  }
+  while (b.size() % 8 != 0) b.push_back(0);
+  u32(crc32c(b.data(), b.size()));
+  u32(0);
+  return b;
+}
+
+EventLogIdentity decode_event_identity(const unsigned char* p, std::size_t n, std::uint64_t particles,
+                                       const std::string& path) {
+  auto fail = [&](std::size_t at, const std::string& why) {
+    throw IoError(fmt::format("{}: corrupt event log identity section at byte offset {}: {}", path,
+                              kEventLogHeaderSize + at, why));
+  };
+  if (n < 24 || n % 8 != 0) fail(0, fmt::format("length {} (expected a multiple of 8, at least 24)", n));
+  if (std::memcmp(p, kEventIdentityMagic, 8) != 0) fail(0, "bad magic");
+  if (const std::uint32_t stored = get_u32(p + n - 8), computed = crc32c(p, n - 8); stored != computed)
+    fail(n - 8, fmt::format("checksum {:#010x}, the bytes give {:#010x}", stored, computed));
+  EventLogIdentity id;
+  std::size_t at = 16;
+  const std::uint32_t G = get_u32(p + 8), M = get_u32(p + 12);
+  if (G > 65535 || M > 65535) fail(8, fmt::format("{} groups and {} materials (at most 65535 each)", G, M));
+  for (std::uint32_t k = 0; k < G + M; ++k) {
+    if (at + 2 > n - 8) fail(at, "the names run past the section");
+    const std::size_t len = p[at] | (std::size_t{p[at + 1]} << 8);
+    if (at + 2 + len > n - 8) fail(at, fmt::format("a name of {} bytes runs past the section", len));
+    (k < G ? id.groups : id.materials).emplace_back(reinterpret_cast<const char*>(p + at + 2), len);
+    at += 2 + len;
+  }
+  if (particles > (n - 8 - at) / 4)
+    fail(at, fmt::format("{} bytes left for the {} particles' group and material", n - 8 - at, particles));
+  id.group.resize(particles);
+  id.material.resize(particles);
+  for (std::uint64_t i = 0; i < particles; ++i, at += 4) {
+    id.group[i] = static_cast<std::uint16_t>(p[at] | (p[at + 1] << 8));
+    id.material[i] = static_cast<std::uint16_t>(p[at + 2] | (p[at + 3] << 8));
+    if (id.group[i] >= G || id.material[i] >= M)
+      fail(at, fmt::format("particle {} has group {} and material {} (of {} and {})", i, id.group[i], id.material[i], G, M));
+  }
+  return id;
 }
 
 // ---- event log reader -----------------------------------------------------------------------
@@ -257,9 +303,9 @@ EventLogReader::EventLogReader(const std::string& path) : path_(path) {
   header_.dimension = get_u32(h + 12);
   header_.record_size = get_u32(h + 16);
   header_.particles = get_u64(h + 24);
-  if (header_.version < kEventLogVersion || header_.version > kEventLogVersionChecked)
+  if (header_.version < kEventLogVersion || header_.version > kEventLogVersionIdentity)
     fail(fmt::format("{}: event log version {} at byte offset 8 is not supported (this build reads versions {} to {})",
-                     path, header_.version, kEventLogVersion, kEventLogVersionChecked));
+                     path, header_.version, kEventLogVersion, kEventLogVersionIdentity));
   if (has_blocks(header_)) {
     const std::uint32_t stored = get_u32(h + 60), computed = crc32c(h, 60);
     if (stored != computed)
@@ -284,8 +330,24 @@ EventLogReader::EventLogReader(const std::string& path) : path_(path) {
   if (header_.particles > (std::uint64_t{1} << 32))
     fail(fmt::format("{}: corrupt event log header: particle count {} at byte offset 24 (ids are 32-bit)", path,
                      header_.particles));
+  if (header_.version >= kEventLogVersionIdentity) {
+    const std::uint64_t n = get_u32(h + 36);
+    if (n > size_ - kEventLogHeaderSize)
+      fail(fmt::format("{}: truncated event log: the identity section at byte offset 64 has {} bytes, the file {} after "
+                       "the header",
+                       path, n, size_ - kEventLogHeaderSize));
+    std::vector<unsigned char> sec(n);  // <= the file's size
+    if (n > 0 && ::pread(fd_, sec.data(), n, kEventLogHeaderSize) != static_cast<ssize_t>(n))
+      fail(fmt::format("{}: cannot read the identity section at byte offset 64", path));
+    try {
+      identity_ = decode_event_identity(sec.data(), sec.size(), header_.particles, path);
+    } catch (const IoError& e) {
+      fail(e.what());
+    }
+    header_.data_offset = kEventLogHeaderSize + n;
+  }
   // The layout fixes the number of records; anything else is a cut (or padded) file.
-  const std::uint64_t body = size_ - kEventLogHeaderSize;
+  const std::uint64_t body = size_ - header_.data_offset;
   if (!has_blocks(header_)) {
     records_ = body / kEventRecordSize;
     if (body % kEventRecordSize != 0)
@@ -296,7 +358,7 @@ EventLogReader::EventLogReader(const std::string& path) : path_(path) {
     if (tail < kEventBlockTrailerSize || (tail - kEventBlockTrailerSize) % kEventRecordSize != 0)
       fail(fmt::format("{}: truncated event log: the last block, at byte offset {}, has {} bytes (not whole {}-byte "
                        "records and a {}-byte checksum record)",
-                       path, kEventLogHeaderSize + full * block_bytes(header_), tail, kEventRecordSize,
+                       path, header_.data_offset + full * block_bytes(header_), tail, kEventRecordSize,
                        kEventBlockTrailerSize));
     records_ = full * header_.block_records + (tail - kEventBlockTrailerSize) / kEventRecordSize;
   }
@@ -383,13 +445,18 @@ EventRecord EventLogReader::record_at(std::uint64_t index) {
 // ---- event log encoder and writer ------------------------------------------------------------
 
 EventLogEncoder::EventLogEncoder(std::FILE* f, std::string path, std::uint32_t dimension, std::uint64_t particles,
-                                 bool fixed_grains, std::uint32_t block_records)
+                                 bool fixed_grains, std::uint32_t block_records, const EventLogIdentity* identity)
     : f_(f), path_(std::move(path)), k_(block_records) {
   if (k_ < 1 || k_ > kEventLogMaxBlockRecords) throw std::invalid_argument("event log block length out of range");
+  if (identity && identity->group.size() != particles)
+    throw std::invalid_argument("event log identity: not one entry per particle");
+  const std::vector<unsigned char> section = identity ? encode_event_identity(*identity) : std::vector<unsigned char>{};
+  if (section.size() > 0xffffffffu) throw std::invalid_argument("event log identity: too many particles");
   block_.resize(std::size_t{k_} * kEventRecordSize + kEventBlockTrailerSize);
   unsigned char h[kEventLogHeaderSize] = {};
   std::memcpy(h, kEventLogMagic, 8);
-  put_u32(h + 8, kEventLogVersionChecked);
+  put_u32(h + 8, identity ? kEventLogVersionIdentity : kEventLogVersionChecked);
+  put_u32(h + 36, static_cast<std::uint32_t>(section.size()));
   put_u32(h + 12, dimension);
   put_u32(h + 16, kEventRecordSize);
   put_u32(h + 20, fixed_grains ? kEventLogFlagFixed : 0u);
@@ -397,6 +464,7 @@ EventLogEncoder::EventLogEncoder(std::FILE* f, std::string path, std::uint32_t d
   put_u32(h + 32, k_);
   put_u32(h + 60, crc32c(h, 60));
   put(h, kEventLogHeaderSize);
+  if (!section.empty()) put(section.data(), section.size());
 }
 
 EventLogEncoder::EventLogEncoder(std::FILE* f, std::string path, const EventLogMark& from, std::uint32_t block_records)
@@ -450,12 +518,13 @@ void EventLogEncoder::finish() {
 }
 
 template <int D>
-EventLogWriter<D>::EventLogWriter(const std::string& path, std::uint64_t particles, bool fixed_grains)
+EventLogWriter<D>::EventLogWriter(const std::string& path, std::uint64_t particles, bool fixed_grains,
+                                  const EventLogIdentity* identity)
     : path_(path) {
   f_ = open_or_throw(path, "wb");
   std::setvbuf(f_, nullptr, _IONBF, 0);  // the encoder writes whole blocks
   try {
-    enc_ = std::make_unique<EventLogEncoder>(f_, path, D, particles, fixed_grains);
+    enc_ = std::make_unique<EventLogEncoder>(f_, path, D, particles, fixed_grains, kEventLogBlockRecords, identity);
   } catch (...) {
     std::fclose(f_);
     f_ = nullptr;
@@ -628,140 +697,6 @@ void ThermoCsvWriter::on_sample(const ThermoSample& s) {
   f_->flush();  // a run that stops early keeps every row written so far
 }
 
-// ---- VTK snapshots ---------------------------------------------------------------------------
-
-template <int D>
-VtkSnapshotWriter<D>::VtkSnapshotWriter(const std::string& dir, const std::vector<Wall<D>>& walls,
-                                        const Vec<D>& lower, const Vec<D>& upper)
-    : dir_(dir), walls_(walls), lower_(lower), upper_(upper), static_file_(walls.size()) {
-  std::filesystem::create_directories(dir_ + "/snapshots");
-}
-
-// One wall's surface at time t as VTK PolyData (polygons in 3D, lines in 2D).
-template <int D>
-std::string VtkSnapshotWriter<D>::wall_file(std::size_t w, double t) {
-  const WallShape<D>& shape = walls_[w].geometry();
-  const bool moving = shape.moving();
-  if (!moving && !static_file_[w].empty()) return static_file_[w];
-  std::string name = walls_[w].name;  // a file name: characters other than [A-Za-z0-9_-] become _
-  for (char& ch : name)
-    if (!(std::isalnum(static_cast<unsigned char>(ch)) || ch == '_' || ch == '-')) ch = '_';
-  const std::string rel = moving ? fmt::format("snapshots/wall_{}_{:06d}.vtp", name, written_.size())
-                                 : fmt::format("snapshots/wall_{}.vtp", name);
-  SurfaceMesh m;
-  shape.tessellate(t, lower_, upper_, m);
-  CheckedFile f(dir_ + "/" + rel, "w");
-  const char* kind = D == 3 ? "Polys" : "Lines";
-  f.print("<?xml version=\"1.0\"?>\n<VTKFile type=\"PolyData\" version=\"0.1\" byte_order=\"LittleEndian\">\n"
-                "  <PolyData>\n    <Piece NumberOfPoints=\"{}\" NumberOfVerts=\"0\" NumberOfLines=\"{}\" "
-                "NumberOfStrips=\"0\" NumberOfPolys=\"{}\">\n      <Points>\n"
-                "        <DataArray type=\"Float64\" NumberOfComponents=\"3\" format=\"ascii\">\n",
-             m.points.size(), D == 2 ? m.cells.size() : 0, D == 3 ? m.cells.size() : 0);
-  for (const auto& p : m.points) f.print("{:.17g} {:.17g} {:.17g}\n", p[0], p[1], p[2]);
-  f.print("        </DataArray>\n      </Points>\n      <{}>\n"
-                "        <DataArray type=\"Int32\" Name=\"connectivity\" format=\"ascii\">\n", kind);
-  for (const auto& c : m.cells)
-    for (const auto k : c) f.print("{}\n", k);
-  f.print("        </DataArray>\n        <DataArray type=\"Int32\" Name=\"offsets\" format=\"ascii\">\n");
-  std::size_t off = 0;
-  for (const auto& c : m.cells) f.print("{}\n", off += c.size());
-  f.print("        </DataArray>\n      </{}>\n    </Piece>\n  </PolyData>\n</VTKFile>\n", kind);
-  f.close();
-  if (!moving) static_file_[w] = rel;
-  return rel;
-}
-
-template <int D>
-void VtkSnapshotWriter<D>::on_snapshot(const Snapshot<D>& snap) {
-  const std::string rel = fmt::format("snapshots/snap_{:06d}.vtp", written_.size());
-  const std::string path = dir_ + "/" + rel;
-  CheckedFile f(path, "w");
-  const std::size_t n = snap.x.size();
-  auto vec3 = [&](const char* name, auto get) {
-    f.print("        <DataArray type=\"Float64\" Name=\"{}\" NumberOfComponents=\"3\" format=\"ascii\">\n", name);
-    double c[3];
-    for (std::size_t i = 0; i < n; ++i) {
-      get(i, c);
-      f.print("{:.17g} {:.17g} {:.17g}\n", c[0], c[1], c[2]);
-    }
-    f.print("        </DataArray>\n");
-  };
-  f.print("<?xml version=\"1.0\"?>\n<VTKFile type=\"PolyData\" version=\"0.1\" byte_order=\"LittleEndian\">\n"
-                "  <PolyData>\n    <Piece NumberOfPoints=\"{0}\" NumberOfVerts=\"{0}\" NumberOfLines=\"0\" "
-                "NumberOfStrips=\"0\" NumberOfPolys=\"0\">\n      <Points>\n", n);
-  vec3("position", [&](std::size_t i, double* c) { to3<D>(snap.x[i], c); });
-  f.print("      </Points>\n      <PointData Scalars=\"radius\" Vectors=\"velocity\">\n");
-  f.print("        <DataArray type=\"Float64\" Name=\"radius\" format=\"ascii\">\n");
-  for (std::size_t i = 0; i < n; ++i) f.print("{:.17g}\n", snap.radius[i]);
-  f.print("        </DataArray>\n");
-  vec3("velocity", [&](std::size_t i, double* c) { to3<D>(snap.v[i], c); });
-  vec3("angular_velocity", [&](std::size_t i, double* c) {
-    if (snap.w.empty()) c[0] = c[1] = c[2] = 0.0;
-    else spin3<D>(snap.w[i], c);
-  });
-  f.print("        <DataArray type=\"Int32\" Name=\"id\" format=\"ascii\">\n");
-  for (std::size_t i = 0; i < n; ++i) f.print("{}\n", snap.id.empty() ? i : std::size_t{snap.id[i]});
-  f.print("        </DataArray>\n");
-  // Mode 0 hard, 1 soft, 3 asleep and the soft cluster id (-1: none). A snapshot without them
-  // comes from a run that does not set them (0 and -1 are written).
-  f.print("        <DataArray type=\"UInt8\" Name=\"mode\" format=\"ascii\">\n");
-  for (std::size_t i = 0; i < n; ++i) f.print("{}\n", snap.mode.empty() ? 0 : int(snap.mode[i]));
-  f.print("        </DataArray>\n        <DataArray type=\"Int32\" Name=\"cluster\" format=\"ascii\">\n");
-  for (std::size_t i = 0; i < n; ++i) f.print("{}\n", snap.cluster.empty() ? -1 : snap.cluster[i]);
-  f.print("        </DataArray>\n      </PointData>\n      <Verts>\n"
-                "        <DataArray type=\"Int32\" Name=\"connectivity\" format=\"ascii\">\n");
-  for (std::size_t i = 0; i < n; ++i) f.print("{}\n", i);
-  f.print("        </DataArray>\n        <DataArray type=\"Int32\" Name=\"offsets\" format=\"ascii\">\n");
-  for (std::size_t i = 0; i < n; ++i) f.print("{}\n", i + 1);
-  f.print("        </DataArray>\n      </Verts>\n    </Piece>\n  </PolyData>\n</VTKFile>\n");
-  f.close();
-  std::vector<std::string> files{rel};
-  for (std::size_t w = 0; w < walls_.size(); ++w) files.push_back(wall_file(w, snap.time));
-  written_.emplace_back(snap.time, std::move(files));
-  write_pvd();
-}
-
-// The collection is rewritten whole (to a temporary, then renamed) after every snapshot.
-template <int D>
-void VtkSnapshotWriter<D>::write_pvd() {
-  const std::string pvd = dir_ + "/snapshots.pvd", tmp = pvd + ".tmp";
-  CheckedFile c(tmp, "w");
-  c.print("<?xml version=\"1.0\"?>\n<VTKFile type=\"Collection\" version=\"0.1\" byte_order=\"LittleEndian\">\n"
-                "  <Collection>\n");
-  for (const auto& [t, files] : written_)
-    for (std::size_t k = 0; k < files.size(); ++k)
-      c.print("    <DataSet timestep=\"{:.17g}\" group=\"\" part=\"{}\" file=\"{}\"/>\n", t, k, files[k]);
-  c.print("  </Collection>\n</VTKFile>\n");
-  c.close();
-  std::error_code ec;
-  std::filesystem::rename(tmp, pvd, ec);
-  if (ec) throw WriteError(fmt::format("{}: cannot rename into place: {}", pvd, ec.message()));
-}
-
-template <int D>
-typename VtkSnapshotWriter<D>::Mark VtkSnapshotWriter<D>::mark() const {
-  Mark m;
-  for (const auto& [t, files] : written_) {
-    m.times.push_back(t);
-    m.files.push_back(files);
-  }
-  m.static_files = static_file_;
-  return m;
-}
-
-template <int D>
-void VtkSnapshotWriter<D>::resume(const Mark& m) {
-  if (m.static_files.size() != walls_.size() || m.times.size() != m.files.size())
-    throw IoError(fmt::format("{}: the checkpoint's snapshot series does not fit this scene's walls", dir_));
-  written_.clear();
-  for (std::size_t k = 0; k < m.times.size(); ++k) written_.emplace_back(m.times[k], m.files[k]);
-  static_file_ = m.static_files;
-  if (!written_.empty()) write_pvd();
-}
-
-template class VtkSnapshotWriter<2>;
-template class VtkSnapshotWriter<3>;
-
 // ---- final_state.csv --------------------------------------------------------------------------
 
 template <int D>
@@ -841,6 +776,14 @@ void write_summary(const std::string& path, const SummaryInfo& info, const RunRe
   f.print("  \"max_overlap\": {},\n", json_number(r.max_overlap));
   f.print("  \"max_overlap_relative\": {},\n", json_number(r.max_overlap_relative));
   f.print("  \"grains_at_end\": {},\n", r.x.size());
+  // The legend of the group and material indices in the snapshots (io/snapshots.hpp).
+  auto names = [&](const char* key, const std::vector<std::string>& v) {
+    f.print("  \"{}\": [", key);
+    for (std::size_t k = 0; k < v.size(); ++k) f.print("{}{}", k ? ", " : "", json_string(v[k]));
+    f.print("],\n");
+  };
+  names("groups", info.groups);
+  names("materials", info.materials);
   if (info.flows) {
     f.print("  \"inflow\": {{\"grains\": {}, \"mass\": {}}},\n", r.grains_in, json_number(r.mass_in));
     f.print("  \"outflow\": {{\"grains\": {}, \"mass\": {}}},\n", r.grains_out, json_number(r.mass_out));

@@ -13,6 +13,8 @@
 #include "engine/observer.hpp"
 #include "io/checked_file.hpp"
 #include "io/io_error.hpp"
+#include "io/snapshots.hpp"
+#include "io/vec3.hpp"
 
 namespace matep {
 
@@ -28,12 +30,20 @@ namespace matep {
 // followed by a 32-byte checksum record: "MATEPBLK", u32 records in the block, u32 flags (bit 0:
 // the last block), u64 records up to and including this block, u32 CRC-32C of the block's records
 // and of bytes 0..23 of the checksum record, u32 zero. The last block (0..K-1 records) always ends
-// the file, so a cut at a block boundary is seen too. Readers take all three versions.
+// the file, so a cut at a block boundary is seen too.
+// Version 4 (written since issue 18) is version 3 with each particle's group and material: header
+// bytes 36..39 give the length S of an identity section that follows the header (the records start
+// at byte 64 + S): "MATEPIDS", u32 group count G, u32 material count M, the G group names then the
+// M material names (each a u16 byte length and its UTF-8 bytes), then for every particle id a u16
+// group index and a u16 material index, zero padding to a multiple of 8 bytes, and a final u32
+// CRC-32C of the section's bytes before it and a u32 zero. Readers take all four versions.
 inline constexpr char kEventLogMagic[8] = {'M', 'A', 'T', 'E', 'P', 'L', 'O', 'G'};
 inline constexpr char kEventBlockMagic[8] = {'M', 'A', 'T', 'E', 'P', 'B', 'L', 'K'};
 inline constexpr std::uint32_t kEventLogVersion = 1;
 inline constexpr std::uint32_t kEventLogVersionFixed = 2;
-inline constexpr std::uint32_t kEventLogVersionChecked = 3;  // the version writers write
+inline constexpr std::uint32_t kEventLogVersionChecked = 3;
+inline constexpr std::uint32_t kEventLogVersionIdentity = 4;  // the version runs write
+inline constexpr char kEventIdentityMagic[8] = {'M', 'A', 'T', 'E', 'P', 'I', 'D', 'S'};
 inline constexpr std::size_t kEventLogHeaderSize = 64;
 inline constexpr std::size_t kEventRecordSize = 264;
 inline constexpr std::size_t kEventBlockTrailerSize = 32;
@@ -68,11 +78,24 @@ struct EventLogHeader {
   std::uint32_t flags = 0;              // version 3
   std::uint64_t particles = 0;
   std::uint32_t block_records = 0;      // version 3: K; 0 in versions 1 and 2 (no blocks)
+  std::uint64_t data_offset = kEventLogHeaderSize;  // where the records begin (version 4: after the identity)
   // Pair records may have mj = +infinity (a fixed partner).
   bool fixed_grains() const {
     return version == kEventLogVersionFixed || (version >= kEventLogVersionChecked && (flags & kEventLogFlagFixed));
   }
 };
+
+// Version 4's identity section: each particle id's group and material (indices into the names).
+struct EventLogIdentity {
+  std::vector<std::string> groups, materials;
+  std::vector<std::uint16_t> group, material;  // one per particle id
+};
+// The section's bytes (padded, with its checksum); throws std::invalid_argument for more than 65535
+// names or a name longer than 65535 bytes.
+std::vector<unsigned char> encode_event_identity(const EventLogIdentity& id);
+// Decodes and checks a section of `particles` ids read at byte offset 64; throws IoError naming `path`.
+EventLogIdentity decode_event_identity(const unsigned char* p, std::size_t n, std::uint64_t particles,
+                                       const std::string& path);
 
 // Byte offset of record `index` (0-based) and of the block holding it (version 3; versions 1 and
 // 2: the record's own offset).
@@ -101,7 +124,9 @@ class EventLogReader {
   std::uint64_t file_size() const { return size_; }
   bool next(EventRecord& rec);  // false at the end
   // Byte offset of the record last returned by next().
-  std::uint64_t offset() const { return index_ ? record_offset(header_, index_ - 1) : kEventLogHeaderSize; }
+  std::uint64_t offset() const { return index_ ? record_offset(header_, index_ - 1) : header_.data_offset; }
+  // Version 4: each particle's group and material (empty in older versions).
+  const EventLogIdentity& identity() const { return identity_; }
   // Random access (the block holding it is read and checked); does not move next().
   EventRecord record_at(std::uint64_t index);
 
@@ -112,6 +137,7 @@ class EventLogReader {
   std::string path_;
   int fd_ = -1;
   EventLogHeader header_;
+  EventLogIdentity identity_;
   std::uint64_t size_ = 0;
   std::uint64_t records_ = 0;
   std::uint64_t index_ = 0;        // next record to return
@@ -141,8 +167,9 @@ struct EventLogMark {
 
 class EventLogEncoder {
  public:
+  // With an identity (one group and material per particle): version 4, else version 3.
   EventLogEncoder(std::FILE* f, std::string path, std::uint32_t dimension, std::uint64_t particles, bool fixed_grains,
-                  std::uint32_t block_records = kEventLogBlockRecords);
+                  std::uint32_t block_records = kEventLogBlockRecords, const EventLogIdentity* identity = nullptr);
   // Continues a log whose file holds the bytes of `from` (positioned at its end).
   EventLogEncoder(std::FILE* f, std::string path, const EventLogMark& from,
                   std::uint32_t block_records = kEventLogBlockRecords);
@@ -166,8 +193,10 @@ class EventLogEncoder {
 template <int D>
 class EventLogWriter final : public Observer<D> {
  public:
-  // Writes version 3; fixed_grains sets the header flag (pair records may have mj = +infinity).
-  EventLogWriter(const std::string& path, std::uint64_t particles, bool fixed_grains);
+  // Writes version 4 (version 3 without an identity); fixed_grains sets the header flag (pair
+  // records may have mj = +infinity).
+  EventLogWriter(const std::string& path, std::uint64_t particles, bool fixed_grains,
+                 const EventLogIdentity* identity = nullptr);
   // Continues the log at `path`, which holds the bytes of `from` (a checkpoint's).
   EventLogWriter(const std::string& path, const EventLogMark& from);
   ~EventLogWriter() override;
@@ -224,59 +253,7 @@ class OutflowCsvWriter final : public Observer<D> {
   std::unique_ptr<CheckedFile> f_;
 };
 
-// VTK XML PolyData snapshots for ParaView: DIR/snapshots/snap_NNNNNN.vtp (points with radius,
-// velocity, angular_velocity, id, mode 0 = hard / 1 = soft, cluster -1 = none) and the time
-// series DIR/snapshots.pvd, rewritten after every snapshot so that it is complete whenever a run
-// stops.
-// What a snapshot series held at a checkpoint: each snapshot's time and files, and each wall's
-// file once written (walls at rest).
-struct SnapshotSeriesMark {
-  std::vector<double> times;
-  std::vector<std::vector<std::string>> files;
-  std::vector<std::string> static_files;
-  template <class A>
-  void archive(A& a) {
-    a(times);
-    a(files);
-    a(static_files);
-  }
-};
-
-template <int D>
-class VtkSnapshotWriter final : public Observer<D> {
- public:
-  // With walls (and the domain box that clips unbounded ones), every snapshot time of the series
-  // also shows each wall's surface: DIR/snapshots/wall_NAME.vtp once for a wall at rest,
-  // DIR/snapshots/wall_NAME_NNNNNN.vtp at every snapshot for a moving one; the .pvd lists the grains
-  // as part 0 and wall k as part k + 1.
-  explicit VtkSnapshotWriter(const std::string& dir, const std::vector<Wall<D>>& walls = {},
-                             const Vec<D>& lower = Vec<D>::Zero(), const Vec<D>& upper = Vec<D>::Zero());
-  bool wants_snapshots() const override { return true; }
-  void on_snapshot(const Snapshot<D>& snap) override;
-  // The series so far (a checkpoint's), and continuing one: the files it names are in place.
-  using Mark = SnapshotSeriesMark;
-  Mark mark() const;
-  void resume(const Mark& m);
-
- private:
-  std::string wall_file(std::size_t w, double t);  // writes it when needed; the relative path
-  void write_pvd();
-  std::string dir_;
-  std::vector<Wall<D>> walls_;
-  Vec<D> lower_, upper_;
-  std::vector<std::string> static_file_;  // per wall: its file once written (walls at rest)
-  // (time, files relative to dir_: the grains', then each wall's)
-  std::vector<std::pair<double, std::vector<std::string>>> written_;
-};
-
-// The words of final_state.csv's last two columns: group[id] indexes group_names for every particle
-// id (an inlet's grains: "inlet.NAME", io/run.cpp), materials[m] names material m (RunResult::material).
-struct StateLabels {
-  std::vector<std::string> group_names;
-  std::vector<int> group;
-  std::vector<std::string> materials;
-};
-
+// The words of final_state.csv's last two columns: io/snapshots.hpp StateLabels.
 template <int D>
 void write_final_state(const std::string& path, const RunResult<D>& result, const StateLabels& labels);
 
@@ -289,6 +266,7 @@ struct SummaryInfo {
   std::uint64_t seed = 0;
   double end_time = 0.0;
   bool flows = false;  // the scene has inlets or outlets
+  std::vector<std::string> groups, materials;  // the names of the group and material indices
 };
 
 template <int D>

@@ -152,7 +152,7 @@ Enskog<D> enskog(const System<D>& sys) {
 }
 
 // The outputs a run plans to write, estimated generously (README.md, "Limits"): thermo.csv rows of
-// 24 bytes a column, snapshots of 280 bytes a grain, events.bin records for max_events or for
+// 24 bytes a column, snapshots of the bytes a grain of their formats (io/snapshots.hpp), events.bin records for max_events or for
 // Enskog's rate. A plan above output.max_bytes is refused, naming the largest part's key.
 template <int D>
 void check_output_plan(const Scene& scene, const System<D>& sys) {
@@ -171,7 +171,7 @@ void check_output_plan(const Scene& scene, const System<D>& sys) {
                    fmt::format("thermo.csv: {:.3g} rows", rows)});
   if (o.snapshot_interval > 0.0) {
     const double snaps = scene.end_time / o.snapshot_interval + 2.0;
-    parts.push_back({"snapshot_interval", o.snapshot_interval, snaps * grains * 280.0,
+    parts.push_back({"snapshot_interval", o.snapshot_interval, snaps * grains * snapshot_bytes_per_grain(o.formats),
                      fmt::format("{:.3g} snapshots of {:.0f} grains", snaps, grains)});
   }
   if (o.events && scene.method != Method::Tdm) {
@@ -310,6 +310,19 @@ RunOutcome run_system(const Scene& scene, const System<D>& sys, const std::strin
   if (scene.output.wall_loads)
     for (const auto& w : sys.walls) wall_names.push_back(w.name);
   const bool flows = !sys.outlets.empty() || !sys.inlets.empty();
+  // Every output names each grain's group and material; an inlet's grains (the ids after the
+  // initial ones, inlet by inlet) form the group "inlet.NAME".
+  StateLabels labels;
+  labels.group_names = scene.group_names;
+  labels.group = scene.group;
+  labels.material = sys.material;
+  for (const Inlet<D>& in : sys.inlets) {
+    const std::uint64_t n = in.slots(scene.end_time);
+    labels.group.insert(labels.group.end(), n, static_cast<int>(labels.group_names.size()));
+    labels.material.insert(labels.material.end(), n, in.material);
+    labels.group_names.push_back("inlet." + in.name);
+  }
+  for (const Material& m : sys.materials) labels.materials.push_back(m.name);
   ThermoCsvWriter thermo(out + "/thermo.csv", wall_names, D, flows, from ? &from->thermo : nullptr);
   std::unique_ptr<EventLogWriter<D>> log;
   std::vector<Observer<D>*> observers{static_cast<Observer<D>*>(&thermo)};
@@ -322,18 +335,28 @@ RunOutcome run_system(const Scene& scene, const System<D>& sys, const std::strin
     observers.push_back(outflow.get());
   }
   if (scene.output.events) {
-    if (from && from->events)
+    if (from && from->events) {
       log = std::make_unique<EventLogWriter<D>>(out + "/events.bin", *from->events);
-    else
+    } else {  // version 4: each id's group and material
+      EventLogIdentity id;
+      id.groups = labels.group_names;
+      id.materials = labels.materials;
+      id.group.assign(labels.group.begin(), labels.group.end());
+      id.material.assign(labels.material.begin(), labels.material.end());
       log = std::make_unique<EventLogWriter<D>>(out + "/events.bin", sys.size() + inlet_slots(sys.inlets, scene.end_time),
-                                                !sys.fixed.empty());
+                                                !sys.fixed.empty(), &id);
+    }
     observers.push_back(log.get());
   }
-  std::unique_ptr<VtkSnapshotWriter<D>> vtk;
+  std::unique_ptr<SnapshotWriter<D>> snaps;
   if (scene.output.snapshot_interval > 0.0) {
-    vtk = std::make_unique<VtkSnapshotWriter<D>>(out, sys.walls, sys.lower, sys.upper);
-    if (from && from->snapshots) vtk->resume(*from->snapshots);
-    observers.push_back(vtk.get());
+    // A pure EDM run of smooth grains without initial spins has none to show.
+    bool spins = scene.method != Method::Edm || (rough && rough->any);
+    for (const Spin<D>& w : sys.w) spins = spins || !w.isZero();
+    snaps = std::make_unique<SnapshotWriter<D>>(out, scene.output.formats, labels, sys.walls, sys.lower, sys.upper,
+                                                sys.periodic, spins);
+    if (from && from->snapshots) snaps->resume(*from->snapshots);
+    observers.push_back(snaps.get());
   }
   // Checkpoints: the engine's state with what every output held at that moment, written whole
   // into the staging folder (published with the set; a killed run's is kept as DIR.killed).
@@ -348,7 +371,7 @@ RunOutcome run_system(const Scene& scene, const System<D>& sys, const std::strin
     c.thermo = thermo.mark();
     if (outflow) c.outflow = outflow->mark();
     if (log) c.events = log->mark();
-    if (vtk) c.snapshots = vtk->mark();
+    if (snaps) c.snapshots = snaps->mark();
     c.engine = state;
     write_checkpoint(out + "/" + kCheckpointName, c);
   };
@@ -374,16 +397,6 @@ RunOutcome run_system(const Scene& scene, const System<D>& sys, const std::strin
   if (log) log->close();
   if (outflow) outflow->close();
   thermo.close();
-  // final_state.csv names each grain's group and material; an inlet's grains (the ids after the
-  // initial ones, inlet by inlet) form the group "inlet.NAME".
-  StateLabels labels;
-  labels.group_names = scene.group_names;
-  labels.group = scene.group;
-  for (const Inlet<D>& in : sys.inlets) {
-    labels.group.insert(labels.group.end(), in.slots(scene.end_time), static_cast<int>(labels.group_names.size()));
-    labels.group_names.push_back("inlet." + in.name);
-  }
-  for (const Material& m : sys.materials) labels.materials.push_back(m.name);
   write_final_state<D>(out + "/final_state.csv", res, labels);
   SummaryInfo info;
   info.scene = scene.path;
@@ -394,6 +407,8 @@ RunOutcome run_system(const Scene& scene, const System<D>& sys, const std::strin
   info.seed = scene.seed;
   info.end_time = scene.end_time;
   info.flows = flows;
+  info.groups = labels.group_names;
+  info.materials = labels.materials;
   if (res.status == "interrupted")
     res.message = fmt::format("stopped by {} at t = {:.17g}", stop_signal_name(), res.time);
   write_summary<D>(out + "/summary.json", info, res);

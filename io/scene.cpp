@@ -1181,7 +1181,7 @@ Scene build_scene(toml::table& root, const std::string& file, const fs::path& ba
   if (top.has("output")) {
     const TableReader out = top.sub("output");
     out.allow({"dir", "thermo_interval", "events", "snapshot_interval", "wall_loads", "max_bytes",
-               "checkpoint_interval"});
+               "checkpoint_interval", "format", "precision"});
     scene.output.dir = out.string_opt("dir").value_or(scene.output.dir);
     scene.output.thermo_interval = out.number_or("thermo_interval", 0.0, kNonNegative);
     scene.output.events = out.boolean_or("events", false);
@@ -1189,6 +1189,30 @@ Scene build_scene(toml::table& root, const std::string& file, const fs::path& ba
     scene.output.wall_loads = out.boolean_or("wall_loads", false);
     scene.output.max_bytes = out.number_or("max_bytes", scene.output.max_bytes, kPositive);
     scene.output.checkpoint_interval = out.number_or("checkpoint_interval", 0.0, kNonNegative);
+    // output.format: one name or a list of them (io/snapshots.hpp).
+    if (const toml::node* f = out.find("format")) {
+      SnapshotFormats& sf = scene.output.formats;
+      sf.vtk = false;
+      std::vector<const toml::node*> names;
+      if (const toml::array* a = f->as_array()) {
+        if (a->empty()) out.fail("format", "names no format", *f);
+        for (const toml::node& e : *a) names.push_back(&e);
+      } else {
+        names.push_back(f);
+      }
+      for (const toml::node* e : names) {
+        const std::string v = e->is_string() ? e->as_string()->get() : std::string();
+        bool* flag = v == "vtk" ? &sf.vtk : v == "vtk_ascii" ? &sf.vtk_ascii : v == "xyz" ? &sf.xyz
+                   : v == "lammps" ? &sf.lammps : nullptr;
+        if (!flag)
+          out.fail("format", "must be \"vtk\", \"vtk_ascii\", \"xyz\" or \"lammps\", or a list of them", *e);
+        if (*flag) out.fail("format", fmt::format("names \"{}\" twice", v), *f);
+        *flag = true;
+      }
+      if (sf.vtk && sf.vtk_ascii)
+        out.fail("format", "\"vtk\" and \"vtk_ascii\" write the same files; name one of them", *f);
+    }
+    scene.output.formats.single = out.string_opt("precision", {"double", "single"}).value_or("double") == "single";
   }
 
   if (!top.has("domain")) top.need("domain");

@@ -12,6 +12,7 @@
 
 #include "engine/result.hpp"
 #include "engine/system.hpp"
+#include "io/snapshots.hpp"
 
 namespace matep {
 
@@ -33,6 +34,7 @@ struct OutputSpec {
   bool wall_loads = false;         // thermo.csv gets each wall's mean force and torque
   double max_bytes = 10e9;         // a run whose planned outputs exceed this is refused (io/run.cpp)
   double checkpoint_interval = 0.0;  // checkpoint.bin every interval (0: at the end and on a signal only)
+  SnapshotFormats formats;          // output.format and output.precision (io/snapshots.hpp)
 };
 
 // [hybrid]: the switching rule of run.method = "hybrid" (engine/hybrid.hpp); unset = default.

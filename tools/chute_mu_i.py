@@ -40,13 +40,14 @@ import json
 import math
 import re
 import sys
-import xml.etree.ElementTree as ET
 from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
 
 import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
+sys.path.insert(0, str(Path(__file__).resolve().parent / "python"))
+from matep.outputs import read_vtp, snapshots  # noqa: E402
 from matep_runs import import_pyplot, run_matep, write_csv  # noqa: E402
 
 ROOT = Path(__file__).resolve().parent.parent
@@ -56,27 +57,6 @@ LENGTH = 0.08                            # the periodic length along the flow
 SLAB = 0.5 * D
 FIELDS = ["method", "angle", "mu", "status", "I", "I_q1", "I_q3", "phi_bulk", "h_over_d", "u_surface",
           "u_slip", "bagnold_A", "bagnold_R2", "accel_percent", "wall_seconds"]
-
-
-def snapshots(run_dir: Path, t_from: float):
-    """(time, vtp path) of the grains' snapshots at or after t_from, from snapshots.pvd."""
-    root = ET.parse(run_dir / "snapshots.pvd").getroot()
-    out = []
-    for ds in root.iter("DataSet"):
-        f = ds.get("file")
-        if re.search(r"snap_\d+\.vtp$", f) and float(ds.get("timestep")) >= t_from - 1e-9:
-            out.append((float(ds.get("timestep")), run_dir / f))
-    return out
-
-
-def read_grains(vtp: Path):
-    piece = ET.parse(vtp).getroot().find("PolyData/Piece")
-    arr = {"position": np.array(piece.find("Points/DataArray").text.split(), float).reshape(-1, 3)}
-    for da in piece.find("PointData").findall("DataArray"):
-        n = int(da.get("NumberOfComponents", "1"))
-        a = np.array((da.text or "").split(), float)
-        arr[da.get("Name")] = a.reshape(-1, n) if n > 1 else a
-    return arr
 
 
 def slab_area(y, r, lo, hi):
@@ -97,7 +77,7 @@ def profiles(frames, top: float):
     means = []
     base_top = None
     for _, vtp in frames:
-        g = read_grains(vtp)
+        g = read_vtp(vtp)
         fixed = g["mode"] == 4
         y, r = g["position"][:, 1], g["radius"]
         if base_top is None:

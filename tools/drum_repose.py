@@ -24,10 +24,11 @@ import math
 import statistics
 import sys
 import tempfile
-import xml.etree.ElementTree as ET
 from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
+sys.path.insert(0, str(Path(__file__).resolve().parent / "python"))
+from matep.outputs import read_vtp, snapshots  # noqa: E402
 from matep_runs import import_pyplot, run_matep, write_csv  # noqa: E402
 
 ROOT = Path(__file__).resolve().parent.parent
@@ -35,23 +36,19 @@ R_DRUM, G = 0.05, 9.81  # cases/drum.toml's drum radius; gravity
 
 
 def surface_angle(vtp: Path) -> float | None:
-    root = ET.parse(vtp).getroot()
-    P = [float(v) for v in root.find("PolyData/Piece/Points/DataArray").text.split()]
-    n = len(P) // 3
-    if n == 0:
+    P = read_vtp(vtp)["position"]
+    if len(P) == 0:
         return None
-    xc = sum(P[3 * i] for i in range(n)) / n
-    zc = sum(P[3 * i + 2] for i in range(n)) / n
+    xc, zc = float(P[:, 0].mean()), float(P[:, 2].mean())
     return math.degrees(math.atan2(abs(xc), abs(zc)))
 
 
 def measure(run_dir: Path, end: float, w: float) -> tuple[float, float, float]:
     angles = []
-    for ds in ET.parse(run_dir / "snapshots.pvd").getroot().iter("DataSet"):
-        if ds.get("part") == "0" and float(ds.get("timestep")) >= 0.5 * end - 1e-9:
-            a = surface_angle(run_dir / ds.get("file"))
-            if a is not None:
-                angles.append(a)
+    for _, vtp in snapshots(run_dir, 0.5 * end):
+        a = surface_angle(vtp)
+        if a is not None:
+            angles.append(a)
     with open(run_dir / "thermo.csv") as f:
         rows = [r for r in csv.DictReader(f) if float(r["time"]) >= 0.5 * end + 1e-9]
     power = -w * statistics.fmean(float(r["drum_ty"]) for r in rows) if rows else float("nan")

@@ -30,7 +30,8 @@ from pathlib import Path
 import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from chute_mu_i import read_grains, snapshots  # noqa: E402
+sys.path.insert(0, str(Path(__file__).resolve().parent / "python"))
+from matep.outputs import read_vtp, snapshots  # noqa: E402
 from matep_runs import import_pyplot, run_matep, write_csv  # noqa: E402
 
 ROOT = Path(__file__).resolve().parent.parent
@@ -71,7 +72,7 @@ def flank_angles(xs, hs, axis: float, lo: float, hi: float):
 def measure(run_dir: Path, end: float, average: float) -> dict:
     lefts, rights, heights = [], [], []
     for _, vtp in snapshots(run_dir, end - average):
-        g = read_grains(vtp)
+        g = read_vtp(vtp)
         free = g["mode"] != 4
         base = float(np.max(g["position"][~free, 1] + g["radius"][~free]))
         x, top = g["position"][free, 0], g["position"][free, 1] + g["radius"][free]

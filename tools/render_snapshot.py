@@ -20,39 +20,18 @@ import xml.etree.ElementTree as ET
 from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
+sys.path.insert(0, str(Path(__file__).resolve().parent / "python"))
+from matep.outputs import read_vtp  # noqa: E402
 from matep_runs import import_pyplot  # noqa: E402
 
 
 def arrays(vtp: Path) -> dict:
-    """Every DataArray of a matep .vtp by Name (the points' array as 'points'), as float lists,
-    plus the cells (connectivity split by offsets) of Polys or Lines."""
-    root = ET.parse(vtp).getroot()
-    piece = root.find("PolyData/Piece")
-    out = {}
-    pts = piece.find("Points/DataArray")
-    out["points"] = [float(v) for v in pts.text.split()] if pts is not None and pts.text else []
-    pd = piece.find("PointData")
-    if pd is not None:
-        for da in pd.findall("DataArray"):
-            out[da.get("Name")] = [float(v) for v in (da.text or "").split()]
-    cells = []
-    for kind in ("Polys", "Lines"):
-        node = piece.find(kind)
-        if node is None:
-            continue
-        conn = offs = None
-        for da in node.findall("DataArray"):
-            vals = [int(v) for v in (da.text or "").split()]
-            if da.get("Name") == "connectivity":
-                conn = vals
-            elif da.get("Name") == "offsets":
-                offs = vals
-        if conn is not None and offs:
-            start = 0
-            for end in offs:
-                cells.append(conn[start:end])
-                start = end
-    out["cells"] = cells
+    """Every array of a matep .vtp (ASCII or binary) by Name as flat float lists (the points as
+    'points'), plus the cells of Polys or Lines."""
+    v = read_vtp(vtp)
+    out = {k: a.ravel().tolist() for k, a in v.items() if hasattr(a, "ravel")}
+    out["points"] = out.pop("position")
+    out["cells"] = [c.tolist() for c in v["cells"]]
     return out
 
 
@@ -64,7 +43,7 @@ def main() -> int:
     ap.add_argument("--png", type=Path)
     ap.add_argument("--cut", help="AXIS:VALUE, keep grains with coordinate <= VALUE (3D)")
     ap.add_argument("--view", default="20,-60", help="ELEV,AZIM in degrees (3D)")
-    ap.add_argument("--color", default="velocity", choices=["velocity", "mode", "radius", "id"])
+    ap.add_argument("--color", default="velocity", choices=["velocity", "mode", "radius", "id", "group", "material"])
     a = ap.parse_args()
 
     pvd = a.out_dir / "snapshots.pvd"

@@ -981,10 +981,9 @@ Snapshot<D> TdmEngine<D>::snapshot(double time) const {
     s.w[k] = w_full(i);
     s.radius[k] = R_[i];
   }
-  if (n_fixed_ > 0) {  // mode 0 for a moving grain, 4 for a fixed one (as the hybrid writes)
-    s.mode.assign(N0_, 0);
-    for (std::size_t i = 0; i < N_; ++i) s.mode[id_[i]] = is_fixed(i) ? 4 : 0;
-  }
+  s.mode.assign(N0_, 1);  // every grain is soft (1); a fixed one 4 (the hybrid's numbers)
+  for (std::size_t i = 0; i < N_; ++i)
+    if (is_fixed(i)) s.mode[id_[i]] = 4;
   if (!removed_id_.empty()) keep_present(s, removed_id_);
   return s;
 }

@@ -589,7 +589,7 @@ TEST(FixedGrains, CliCheckRunAndVerifyARoughBedOnAFixedBase) {
   const std::string log = (out / "events.bin").string();
   const test::CliResult stats = test::run_cli("log stats " + log);
   ASSERT_EQ(stats.code, 0) << stats.out;
-  EXPECT_NE(stats.out.find("version 3 (fixed grains)"), std::string::npos) << stats.out;
+  EXPECT_NE(stats.out.find("version 4 (fixed grains)"), std::string::npos) << stats.out;
   const test::CliResult ver = test::run_cli("log verify " + log + " --scene " + path.string());
   EXPECT_EQ(ver.code, 0) << ver.out;
   // The first record with a fixed partner; a copy with a moving fixed partner (vj_after, bytes
@@ -600,7 +600,7 @@ TEST(FixedGrains, CliCheckRunAndVerifyARoughBedOnAFixedBase) {
   {
     EventLogReader reader(log);
     header = reader.header();
-    EXPECT_EQ(header.version, kEventLogVersionChecked);
+    EXPECT_EQ(header.version, kEventLogVersionIdentity);
     EXPECT_TRUE(header.fixed_grains());
     EventRecord r;
     bool found = false;

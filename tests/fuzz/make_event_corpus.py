@@ -4,8 +4,9 @@
 Three small EDM runs with output.events = true (cases/disks_in_a_box.toml in 2D, elastic_gas.toml in
 3D, and heap.toml in 2D as EDM: fixed grains, so the fixed-grain flag and mj = +inf, and an inlet's
 inflow records) give their first 200 records (264 bytes each, so every file stays under 64 KiB),
-written again in the layouts readers take: version 3 with K = 1024 (as runs write it) and with
-K = 64 (several blocks), and version 1 (no checksums). Deterministic: the runs are seeded.
+written again in the layouts readers take: version 4 (with each particle's group and material, as
+runs write it) with K = 1024 and K = 64 (several blocks), version 3 (no identity section) and
+version 1 (no checksums). Deterministic: the runs are seeded.
 
 Usage: tests/fuzz/make_event_corpus.py [path/to/matep]   (default build/matep)
 """
@@ -45,27 +46,30 @@ assert crc32c(b"123456789") == 0xE3069283
 
 
 def read_log(path):
-    """(dimension, particles, fixed flag, records) of a version-3 log."""
+    """(dimension, particles, fixed flag, identity section, records) of a version-3 or 4 log."""
     with open(path, "rb") as f:
         b = f.read()
-    assert b[:8] == b"MATEPLOG" and struct.unpack_from("<I", b, 8)[0] == 3, path
+    version = struct.unpack_from("<I", b, 8)[0]
+    assert b[:8] == b"MATEPLOG" and version in (3, 4), path
     dim, size, flags = struct.unpack_from("<III", b, 12)
-    particles, k = struct.unpack_from("<QI", b, 24)
+    particles, k, sec = struct.unpack_from("<QII", b, 24)
     assert size == RECORD
-    records, off = [], HEADER
+    section = b[HEADER:HEADER + sec] if version == 4 else b""
+    records, off = [], HEADER + len(section)
     while off < len(b):
         n = struct.unpack_from("<I", b, off + min(k, (len(b) - off - TRAILER) // RECORD) * RECORD + 8)[0]
         records += [b[off + i * RECORD:off + (i + 1) * RECORD] for i in range(n)]
         off += n * RECORD + TRAILER
-    return dim, particles, flags & 1, records
+    return dim, particles, flags & 1, section, records
 
 
-def write_v3(path, dim, particles, fixed, records, k):
+def write_log(path, dim, particles, fixed, section, records, k):
+    """Version 4 with an identity section, version 3 without."""
     h = bytearray(HEADER)
     h[:8] = b"MATEPLOG"
-    struct.pack_into("<IIIIQI", h, 8, 3, dim, RECORD, fixed, particles, k)
+    struct.pack_into("<IIIIQII", h, 8, 4 if section else 3, dim, RECORD, fixed, particles, k, len(section))
     struct.pack_into("<I", h, 60, crc32c(bytes(h[:60])))
-    out = bytearray(h)
+    out = bytearray(h) + section
     blocks = [records[i:i + k] for i in range(0, len(records), k)]
     if not blocks or len(blocks[-1]) == k:
         blocks.append([])  # the last block has 0..K-1 records
@@ -96,9 +100,9 @@ def run(matep, case, sets, tmp):
     for s in sets:
         args += ["--set", s]
     subprocess.run(args, check=False, capture_output=True)  # a collapse still leaves its log
-    dim, particles, fixed, records = read_log(os.path.join(out, "events.bin"))
+    dim, particles, fixed, section, records = read_log(os.path.join(out, "events.bin"))
     assert len(records) >= KEEP, f"{case}: only {len(records)} records"
-    return dim, particles, fixed, records[:KEEP]
+    return dim, particles, fixed, section, records[:KEEP]
 
 
 def main():
@@ -107,11 +111,11 @@ def main():
         d2 = run(matep, "disks_in_a_box.toml", ["run.end_time=0.2"], tmp)
         d3 = run(matep, "elastic_gas.toml", ["run.end_time=0.5"], tmp)
         heap = run(matep, "heap.toml", ["run.method=edm", "run.tc=1e-4", "run.end_time=0.6"], tmp)
-    write_v3(os.path.join(CORPUS, "events_2d.bin"), *d2, k=1024)
-    write_v3(os.path.join(CORPUS, "events_3d.bin"), *d3, k=1024)
-    write_v3(os.path.join(CORPUS, "events_3d_blocks.bin"), *d3, k=64)
-    write_v3(os.path.join(CORPUS, "events_heap_2d_fixed.bin"), *heap, k=64)
-    write_v1(os.path.join(CORPUS, "events_2d_v1.bin"), d2[0], d2[1], d2[3])
+    write_log(os.path.join(CORPUS, "events_2d.bin"), *d2, k=1024)
+    write_log(os.path.join(CORPUS, "events_3d.bin"), *d3, k=1024)
+    write_log(os.path.join(CORPUS, "events_3d_blocks.bin"), *d3[:3], b"", d3[4], k=64)
+    write_log(os.path.join(CORPUS, "events_heap_2d_fixed.bin"), *heap, k=64)
+    write_v1(os.path.join(CORPUS, "events_2d_v1.bin"), d2[0], d2[1], d2[4])
     for name in sorted(os.listdir(CORPUS)):
         if name.endswith(".bin"):
             print(name, os.path.getsize(os.path.join(CORPUS, name)))

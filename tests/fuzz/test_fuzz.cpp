@@ -78,11 +78,20 @@ void fix_checksums(std::string& s) {
     return v;
   };
   auto put = [&](std::size_t at, std::uint32_t v) { std::memcpy(s.data() + at, &v, 4); };
-  if (s.size() < matep::kEventLogHeaderSize || s.compare(0, 8, matep::kEventLogMagic, 8) != 0 || u32(8) != 3) return;
+  if (s.size() < matep::kEventLogHeaderSize || s.compare(0, 8, matep::kEventLogMagic, 8) != 0 ||
+      (u32(8) != 3 && u32(8) != 4))
+    return;
   put(60, matep::crc32c(s.data(), 60));
+  std::size_t start = matep::kEventLogHeaderSize;  // version 4: the identity section first
+  if (u32(8) == 4) {
+    const std::size_t n = u32(36);
+    if (n < 8 || start + n > s.size()) return;
+    put(start + n - 8, matep::crc32c(s.data() + start, n - 8));
+    start += n;
+  }
   const std::size_t k = u32(32), rec = matep::kEventRecordSize, tr = matep::kEventBlockTrailerSize;
   if (k == 0 || k > matep::kEventLogMaxBlockRecords) return;
-  for (std::size_t off = matep::kEventLogHeaderSize; off + tr <= s.size();) {
+  for (std::size_t off = start; off + tr <= s.size();) {
     std::size_t n = k;  // a full block, or the last one (what is left)
     if (off + k * rec + tr > s.size() || s.compare(off + k * rec, 8, matep::kEventBlockMagic, 8) != 0)
       n = (s.size() - off - tr) / rec;

@@ -29,12 +29,19 @@ inline void reseal_event_log(const std::filesystem::path& path) {
     std::ifstream f(path, std::ios::binary);
     b.assign(std::istreambuf_iterator<char>(f), {});
   }
-  if (b.size() < kEventLogHeaderSize || u32_at(b, 8) != kEventLogVersionChecked) return;
+  const std::uint32_t version = b.size() < kEventLogHeaderSize ? 0 : u32_at(b, 8);
+  if (version != kEventLogVersionChecked && version != kEventLogVersionIdentity) return;
   put_u32_at(b, 60, crc32c(b.data(), 60));
+  std::size_t start = kEventLogHeaderSize;  // version 4: after the identity section (resealed too)
+  if (version == kEventLogVersionIdentity) {
+    const std::size_t n = u32_at(b, 36);
+    if (n >= 8 && start + n <= b.size()) put_u32_at(b, start + n - 8, crc32c(b.data() + start, n - 8));
+    start += n;
+  }
   const std::size_t k = u32_at(b, 32), block = k * kEventRecordSize + kEventBlockTrailerSize;
-  const std::size_t body = b.size() - kEventLogHeaderSize, full = body / block;
+  const std::size_t body = b.size() - start, full = body / block;
   for (std::size_t blk = 0; blk <= full; ++blk) {
-    const std::size_t off = kEventLogHeaderSize + blk * block;
+    const std::size_t off = start + blk * block;
     const std::size_t n = blk < full ? k : (body % block - kEventBlockTrailerSize) / kEventRecordSize;
     if (blk == full && body % block < kEventBlockTrailerSize) break;  // cut: nothing to seal
     const std::size_t t = off + n * kEventRecordSize;

@@ -17,6 +17,7 @@
 
 #include "io/output.hpp"
 #include "tests/support/cli.hpp"
+#include "tests/support/vtp.hpp"
 
 namespace fs = std::filesystem;
 
@@ -209,7 +210,10 @@ TEST(Cli, TruncatedEventLogIsReportedWithItsByteOffset) {
   const auto size = fs::file_size(log);
   ASSERT_GT(size, matep::kEventLogHeaderSize + 2 * matep::kEventRecordSize);
   const matep::EventLogHeader h = matep::EventLogReader(log.string()).header();
-  EXPECT_EQ(h.version, matep::kEventLogVersionChecked);
+  EXPECT_EQ(h.version, matep::kEventLogVersionIdentity);
+  // The identity section: magic and counts (16 bytes), the names "gas" and "hard" (2 + 3, 2 + 4), four
+  // bytes for each of the 2744 ids, padded to 8, then its checksum record (8).
+  EXPECT_EQ(h.data_offset, matep::kEventLogHeaderSize + (16 + 5 + 6 + 4 * 2744 + 7) / 8 * 8 + 8);
   fs::resize_file(log, size - 10);
   try {
     matep::EventLogReader reader(log.string());  // the size does not fit the layout
@@ -221,7 +225,7 @@ TEST(Cli, TruncatedEventLogIsReportedWithItsByteOffset) {
     const std::string msg = e.what();
     // The cut is in the last block, whose checksum record ended the file.
     const std::uint64_t block = h.block_records * matep::kEventRecordSize + matep::kEventBlockTrailerSize;
-    const std::uint64_t last = matep::kEventLogHeaderSize + (size - 10 - matep::kEventLogHeaderSize) / block * block;
+    const std::uint64_t last = h.data_offset + (size - 10 - h.data_offset) / block * block;
     EXPECT_NE(msg.find(log.string() + ": truncated event log: the last block, at byte offset " + std::to_string(last)),
               std::string::npos)
         << msg;
@@ -245,21 +249,7 @@ TEST(Cli, PeriodicAxisTooShortIsRefusedBeforeAnythingIsWritten) {
   fs::remove_all(d);
 }
 
-namespace {
-// The numbers of the DataArray named `name` in a .vtp file written by matep.
-// An empty name: the first DataArray.
-std::vector<double> vtp_array(const std::string& text, const std::string& name) {
-  const auto tag = name.empty() ? text.find("<DataArray") : text.find("Name=\"" + name + "\"");
-  if (tag == std::string::npos) return {};
-  const auto start = text.find('>', tag) + 1;
-  const auto end = text.find("</DataArray>", start);
-  std::istringstream in(text.substr(start, end - start));
-  std::vector<double> v;
-  double x;
-  while (in >> x) v.push_back(x);
-  return v;
-}
-}  // namespace
+using matep::test::vtp_array;
 
 TEST(Cli, VtkSnapshotsAndTheirTimeSeriesReadBack) {
   const fs::path d = tmpdir("vtk");

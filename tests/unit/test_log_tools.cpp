@@ -325,9 +325,10 @@ TEST_F(LogTools, FilterWritesExactlyTheMatchingRecords) {
     const fs::path out = dir() / "filtered.bin";
     const Result res = sh("log filter " + log.string() + " --out " + out.string() + " " + c.args);
     ASSERT_EQ(res.code, 0) << c.args << "\n" << res.out;
-    // A version-3 log with the input's dimension and particle count, holding exactly these records.
+    // A version-4 log (as its input) with the input's dimension, particle count and identity,
+    // holding exactly these records.
     const matep::LogFile lf = matep::inspect_log(out.string());
-    EXPECT_EQ(lf.header.version, matep::kEventLogVersionChecked);
+    EXPECT_EQ(lf.header.version, matep::kEventLogVersionIdentity);
     EXPECT_EQ(lf.header.dimension, in_header.dimension);
     EXPECT_EQ(lf.header.particles, in_header.particles);
     EXPECT_EQ(lf.records, n);
@@ -967,7 +968,7 @@ TEST(LogToolsRecords, EveryToolRefusesARecordThatFailsItsChecks) {
   fs::remove_all(d);
 }
 
-// A flipped byte in a float field of a version-3 log: one ulp of a velocity, which no physics check
+// A flipped byte in a float field of a run's (version-4) log: one ulp of a velocity, which no physics check
 // can see, is caught by its block's checksum; every tool reports that block by byte offset, and
 // the records before it were read. The same with the flip resealed passes verify (so it was the
 // checksum that saw it); a flip in a checksum record and a log cut at a block boundary are caught.
@@ -975,7 +976,7 @@ TEST_F(LogTools, AFlippedByteIsCaughtByItsBlockChecksum) {
   const fs::path good = gas() / "events.bin";
   const matep::LogFile lf = matep::inspect_log(good.string());
   const matep::EventLogHeader& h = lf.header;
-  ASSERT_EQ(h.version, matep::kEventLogVersionChecked);
+  ASSERT_EQ(h.version, matep::kEventLogVersionIdentity);
   const std::uint32_t k = h.block_records;
   ASSERT_EQ(k, matep::kEventLogBlockRecords);
   ASSERT_GT(lf.records, std::uint64_t{2} * k + 1);
@@ -1016,7 +1017,9 @@ TEST_F(LogTools, AFlippedByteIsCaughtByItsBlockChecksum) {
   flip_copy(good, bad, trailer + 26, 0x80);
   const Result t = sh("log verify " + bad.string());
   EXPECT_EQ(t.code, 2) << t.out;
-  EXPECT_NE(t.out.find("corrupt block at byte offset 64 (records 0 to " + std::to_string(k - 1) + ")"), std::string::npos)
+  EXPECT_NE(t.out.find("corrupt block at byte offset " + std::to_string(h.data_offset) + " (records 0 to " +
+                       std::to_string(k - 1) + ")"),
+            std::string::npos)
       << t.out;
   fs::copy_file(good, bad, fs::copy_options::overwrite_existing);
   const std::uint64_t cut = matep::block_offset(h, lf.records);  // the last block's start: whole blocks remain
@@ -1139,5 +1142,94 @@ TEST(LogToolsFormat, VersionOneAndTwoLogsStillRead) {
                          std::to_string(matep::record_offset(matep::test::v1_header(), 20)) + ": mj = inf"),
             std::string::npos)
       << bad.out;
+  fs::remove_all(d);
+}
+
+// Version 4: each particle's group and material after the header. It reads back, survives `log
+// filter`, shifts the records by its length, and a flipped byte, an index beyond the names or a
+// length beyond the file is refused with its byte offset.
+TEST(LogToolsFormat, VersionFourCarriesEachParticlesGroupAndMaterial) {
+  const fs::path d = tmpdir("identity");
+  matep::EventLogIdentity id;
+  id.groups = {"bed", "inlet.feed"};
+  id.materials = {"glass", "steel"};
+  for (std::uint16_t i = 0; i < 10; ++i) {
+    id.group.push_back(i < 6 ? 0 : 1);
+    id.material.push_back(i % 2);
+  }
+  const fs::path log = d / "v4.bin";
+  std::vector<matep::EventRecord> recs;
+  {
+    SyntheticLog gen(d / "unused.bin", 10);
+    for (int k = 0; k < 5; ++k) recs.push_back(gen.next());
+    std::FILE* f = std::fopen(log.c_str(), "wb");
+    ASSERT_NE(f, nullptr);
+    matep::EventLogEncoder enc(f, log.string(), 3, 10, false, 3, &id);
+    for (const auto& r : recs) enc.add(r);
+    enc.finish();
+    std::fclose(f);
+  }
+  // 16 + names (2+3, 2+10, 2+5, 2+5) + 40 = 87 bytes, padded to 88, and the 8-byte checksum record.
+  const std::uint64_t section = 96;
+  EXPECT_EQ(fs::file_size(log), matep::kEventLogHeaderSize + section + 5 * matep::kEventRecordSize +
+                                    2 * matep::kEventBlockTrailerSize);
+  {
+    matep::EventLogReader reader(log.string());
+    EXPECT_EQ(reader.header().version, matep::kEventLogVersionIdentity);
+    EXPECT_EQ(reader.header().data_offset, matep::kEventLogHeaderSize + section);
+    EXPECT_EQ(reader.identity().groups, id.groups);
+    EXPECT_EQ(reader.identity().materials, id.materials);
+    EXPECT_EQ(reader.identity().group, id.group);
+    EXPECT_EQ(reader.identity().material, id.material);
+    matep::EventRecord r;
+    for (const auto& want : recs) {
+      ASSERT_TRUE(reader.next(r));
+      EXPECT_EQ(encode(r), encode(want));
+    }
+    EXPECT_FALSE(reader.next(r));
+  }
+  EXPECT_TRUE(matep::verify_log(log.string(), nullptr, 1e-9).ok);
+  const fs::path out = d / "filtered.bin";
+  ASSERT_EQ(sh("log filter " + log.string() + " --out " + out.string()).code, 0);
+  {
+    matep::EventLogReader back(out.string());
+    EXPECT_EQ(back.header().version, matep::kEventLogVersionIdentity);
+    EXPECT_EQ(back.identity().group, id.group);
+    EXPECT_EQ(back.records(), 5u);
+  }
+  // A flipped byte in a name: the section's checksum.
+  flip_copy(log, d / "flipped.bin", matep::kEventLogHeaderSize + 18, 0x01);
+  Result r = sh("log stats " + (d / "flipped.bin").string());
+  EXPECT_EQ(r.code, 2);
+  EXPECT_NE(r.out.find("corrupt event log identity section at byte offset " +
+                       std::to_string(matep::kEventLogHeaderSize + section - 8) + ": checksum"),
+            std::string::npos)
+      << r.out;
+  // A group index beyond the names, its checksum made right: named with the particle.
+  {
+    std::string bytes = slurp(log);
+    const std::size_t at = matep::kEventLogHeaderSize + 16 + 5 + 12 + 7 + 7 + 4 * 3;  // particle 3's group
+    bytes[at] = 2;
+    const std::uint32_t crc = matep::crc32c(bytes.data() + matep::kEventLogHeaderSize, section - 8);
+    std::memcpy(bytes.data() + matep::kEventLogHeaderSize + section - 8, &crc, 4);
+    write_text(d / "index.bin", bytes);
+    r = sh("log verify " + (d / "index.bin").string());
+    EXPECT_EQ(r.code, 2);
+    EXPECT_NE(r.out.find("particle 3 has group 2 and material 1 (of 2 and 2)"), std::string::npos) << r.out;
+  }
+  // A section length beyond the file (header checksum made right).
+  {
+    std::string bytes = slurp(log);
+    const std::uint32_t huge = 1u << 30;
+    std::memcpy(bytes.data() + 36, &huge, 4);
+    const std::uint32_t crc = matep::crc32c(bytes.data(), 60);
+    std::memcpy(bytes.data() + 60, &crc, 4);
+    write_text(d / "long.bin", bytes);
+    r = sh("log stats " + (d / "long.bin").string());
+    EXPECT_EQ(r.code, 2);
+    EXPECT_NE(r.out.find("truncated event log: the identity section at byte offset 64 has 1073741824 bytes"),
+              std::string::npos)
+        << r.out;
+  }
   fs::remove_all(d);
 }

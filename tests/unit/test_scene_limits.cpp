@@ -197,11 +197,15 @@ TEST(SceneLimits, AnOutputPlanAboveMaxBytesIsRefusedNamingTheLargestPart) {
   EXPECT_NE(what_of(gas("thermo_interval = 1e-4\nmax_bytes = 1e6\n")).find("output.thermo_interval"),
             std::string::npos);
   EXPECT_EQ(what_of(gas("thermo_interval = 1e-4\nmax_bytes = 1e7\n")), "");
-  // Snapshots: 2744 grains x 280 bytes x 1002 snapshots is 770 MB.
-  const std::string snaps = what_of(gas("snapshot_interval = 1e-3\nmax_bytes = 5e8\n"));
+  // Snapshots: 2744 grains x 120 bytes (binary VTK) x 1002 snapshots is 330 MB; in ASCII (280 bytes
+  // a grain) 770 MB, and with a second format the sum.
+  const std::string snaps = what_of(gas("snapshot_interval = 1e-3\nmax_bytes = 3e8\n"));
   EXPECT_NE(snaps.find("output.snapshot_interval"), std::string::npos) << snaps;
   EXPECT_NE(snaps.find("snapshots of 2744 grains"), std::string::npos) << snaps;
-  EXPECT_EQ(what_of(gas("snapshot_interval = 1e-3\nmax_bytes = 1e9\n")), "");
+  EXPECT_EQ(what_of(gas("snapshot_interval = 1e-3\nmax_bytes = 4e8\n")), "");
+  EXPECT_NE(what_of(gas("snapshot_interval = 1e-3\nmax_bytes = 5e8\nformat = \"vtk_ascii\"\n")), "");
+  EXPECT_EQ(what_of(gas("snapshot_interval = 1e-3\nmax_bytes = 8e8\nformat = \"vtk_ascii\"\n")), "");
+  EXPECT_NE(what_of(gas("snapshot_interval = 1e-3\nmax_bytes = 1e9\nformat = [\"vtk\", \"xyz\"]\n")), "");
   // Events: Enskog's rate for this gas is about 2e4 per unit time, 264 bytes each.
   const std::string events = what_of(gas("events = true\nmax_bytes = 1e6\n"));
   EXPECT_NE(events.find("output.events"), std::string::npos) << events;

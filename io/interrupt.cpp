@@ -45,6 +45,20 @@ void install_interrupt_handlers() {
   sigaction(SIGTERM, &sa, nullptr);
 }
 
+InterruptScope::InterruptScope() {
+  g_stop.store(false, std::memory_order_relaxed);
+  g_signal = 0;
+  g_held = 0;
+  sigaction(SIGINT, nullptr, &old_int_);
+  sigaction(SIGTERM, nullptr, &old_term_);
+  install_interrupt_handlers();
+}
+
+InterruptScope::~InterruptScope() {
+  sigaction(SIGINT, &old_int_, nullptr);
+  sigaction(SIGTERM, &old_term_, nullptr);
+}
+
 const std::atomic<bool>& stop_flag() { return g_stop; }
 
 int stop_signal() { return g_signal; }

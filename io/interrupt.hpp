@@ -5,12 +5,26 @@
 // holds a mix of two runs.
 #pragma once
 
+#include <signal.h>
+
 #include <atomic>
 
 namespace matep {
 
 // Installs the handlers (idempotent). Without them the stop flag never changes.
 void install_interrupt_handlers();
+// For a host process with handlers of its own (the Python module): installs matep's handlers with
+// the stop flag cleared, and restores the host's handlers when it ends.
+class InterruptScope {
+ public:
+  InterruptScope();
+  ~InterruptScope();
+  InterruptScope(const InterruptScope&) = delete;
+  InterruptScope& operator=(const InterruptScope&) = delete;
+
+ private:
+  struct sigaction old_int_ {}, old_term_ {};
+};
 // The flag the engines poll (EdmSettings::stop, TdmSettings::stop).
 const std::atomic<bool>& stop_flag();
 // The signal that asked for the stop (0: none).

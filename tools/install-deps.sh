@@ -4,7 +4,8 @@ set -euo pipefail
 packages=(g++ cmake make pkg-config
           libboost-dev libboost-program-options-dev libeigen3-dev libfmt-dev
           libtomlplusplus-dev libgtest-dev libbenchmark-dev
-          python3-matplotlib)
+          python3-matplotlib python3-numpy python3-pandas python3-ase pybind11-dev python3-dev
+          paraview python3-paraview xvfb xauth)
 missing=()
 for p in "${packages[@]}"; do
   dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed" || missing+=("$p")

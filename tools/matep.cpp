@@ -5,6 +5,7 @@
 #include <boost/program_options.hpp>
 #include <algorithm>
 #include <chrono>
+#include <deque>
 #include <csignal>
 #include <cstdio>
 #include <cstdlib>
@@ -125,13 +126,19 @@ int cmd_run(const std::vector<std::string>& rest) {
   const bool tty = !a.quiet && isatty(STDERR_FILENO);
   auto start = std::chrono::steady_clock::now();
   auto last = start;
+  // The ETA divides what is left by the rate over the last ~10 s (a pour slows down as it lands; the
+  // rate since the start would promise too little time).
+  std::deque<std::pair<double, double>> recent;  // (seconds since start, fraction done)
   if (tty) {
     progress = [&](double t, double frac, std::uint64_t events) {
       const auto now = std::chrono::steady_clock::now();
       if (std::chrono::duration<double>(now - last).count() < 0.5) return;
       last = now;
       const double el = std::chrono::duration<double>(now - start).count();
-      const double eta = frac > 0.0 ? el * (1.0 - frac) / frac : 0.0;
+      recent.emplace_back(el, frac);
+      while (recent.size() > 2 && recent[1].first <= el - 10.0) recent.pop_front();
+      const auto [el0, frac0] = recent.size() > 1 ? recent.front() : std::pair<double, double>{0.0, 0.0};
+      const double eta = frac > frac0 ? (el - el0) * (1.0 - frac) / (frac - frac0) : 0.0;
       fmt::print(stderr, "\r  t = {:.6g} ({:5.1f}%)  {:.3g} {}/s  ETA {:.0f} s   ", t, 100.0 * frac,
                  events / std::max(el, 1e-9), scene.method == matep::Method::Tdm ? "steps" : "events", eta);
     };

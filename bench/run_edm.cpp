@@ -72,8 +72,8 @@ int one(int n_side, double rho, const std::string& queue, double cpp) {
   const long rss0 = current_rss_kb();
   System<3> sys = lattice(n_side, rho, 1);
   const double N = static_cast<double>(sys.size());
-  // Enskog-CS collision rate per particle at T = 1 (REFERENCES 2.1) sets the run length; the
-  // first sample (after ~3 collisions per particle) ends the melting of the lattice.
+  // Enskog-CS collision rate per particle at T = 1 (docs/references.md §2.1) sets the run length;
+  // the first sample (after ~3 collisions per particle) ends the melting of the lattice.
   const double phi = std::numbers::pi * rho / 6.0;
   const double g = (1 - phi / 2) / std::pow(1 - phi, 3);
   const double omega = 24 * phi * g / std::sqrt(std::numbers::pi);

@@ -1,5 +1,5 @@
 // Normal coefficient of restitution as a function of the normal impact speed u_n.
-// Models follow the seed report, section 3.1 (eqs. 3.3-3.6).
+// Models follow the seed report, section 3.1, eqs. 3.3-3.6 (docs/references.md §S.3.1).
 #pragma once
 
 #include <algorithm>

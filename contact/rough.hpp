@@ -12,7 +12,8 @@
 //    -R_i n x J_t on i and -R_j n x J_t on j (contact_torque; same sign on both).
 //  * 2D: Spin<2> is the z component.
 //
-// The rule (Walton, Mech. Mater. 16, 239 (1993); Lun, JFM 233, 539 (1991); REFERENCES 6.6):
+// The rule (Walton, Mech. Mater. 16, 239 (1993); Lun, JFM 233, 539 (1991);
+// docs/references.md §6.6):
 //    v_n' = -e v_n,    v_t' = -beta v_t   (contact-point velocities),
 // so J_n = -(1 + e) m* v_n and J_t = -(1 + beta) m_t v_t, with m* = 1/(1/m_i + 1/m_j) and the
 // tangential effective mass (DERIVED: a tangential impulse J on i changes v_t by
@@ -28,8 +29,9 @@
 // at that point).
 //
 // Gross sliding (Coulomb): |J_t| = mu J_n gives 1 + beta = mu (1 + e) (m*/m_t) |v_n|/|v_t|, and
-// m*/m_t = 1 + 1/q for equal q (7/2 spheres, 3 disks); the seed's eq. 3.29 (Zamankhan & Huang)
-// is this expression written with the masses and the non-dimensional inertia of each body.
+// m*/m_t = 1 + 1/q for equal q (7/2 spheres, 3 disks); the seed's eq. 3.29 (Zamankhan & Huang;
+// docs/references.md §S.3.3.3) is this expression written with the masses and the non-dimensional
+// inertia of each body.
 #pragma once
 
 #include <algorithm>
@@ -45,12 +47,13 @@ namespace matep {
 // Tangential restitution models for a pair of materials.
 enum class TangentialLaw {
   // beta = min(beta0, -1 + mu (1 + e) (m*/m_t) |v_n|/|v_t|): sticking with beta0 unless Coulomb
-  // sliding limits it (Walton 1993; Lun 1991; REFERENCES 6.6).
+  // sliding limits it (Walton 1993; Lun 1991; docs/references.md §6.6).
   Walton,
   // beta = beta0 whatever the impact (no Coulomb limit); beta0 in [-1, 1].
   Constant,
-  // The seed report's FEM fit, its eq. 3.30 (Huang's finite-element simulations), capped by
-  // Coulomb sliding. The extracted text of the seed is garbled; it is read here as
+  // The seed report's FEM fit, its eq. 3.30 (Huang's finite-element simulations;
+  // docs/references.md §S.3.3.3), capped by Coulomb sliding. The extracted text of the seed is
+  // garbled; it is read here as
   //    (1 + beta)/(1 + e) = 0.12 (arctan(|v_n|/|v_t|))^2.98 + 0.92,
   // the angle in radians (arctan of the normal over the tangential contact-point speed, the
   // impact angle measured from the tangent plane, 0 ... pi/2). The fit alone does not know mu and
@@ -64,8 +67,9 @@ enum class TangentialLaw {
 struct TangentialModel {
   TangentialLaw law = TangentialLaw::Walton;
   double friction = 0.0;  // Coulomb mu (Walton, FemFit); kPlane (infinity) means no sliding
-  double beta0 = 0.4;     // Walton: the sticking limit (seed sec. 3.1: 0.4 after Maw's data,
-                          // Lun & Bent); Constant: beta itself. In [-1, 1].
+  double beta0 = 0.4;     // Walton: the sticking limit (seed report: 0.4 after Maw's data,
+                          // Lun & Bent; docs/references.md §S.3.1); Constant: beta itself.
+                          // In [-1, 1].
 
   static TangentialModel walton(double mu, double beta0 = 0.4) {
     return {TangentialLaw::Walton, mu, beta0};
@@ -196,11 +200,12 @@ inline RoughResult<D> rough_wall_collision(const RoughBody<D>& i, const Vec<D>& 
   return r;
 }
 
-// Lun & Savage's five categories of a collision by its tangential restitution (seed sec. 3.1):
-// -1 smooth (surfaces slip, spins untouched); (-1, 0) sliding (slip, some translational energy
-// goes into rotation); 0 rolling (no tangential contact velocity left); (0, 1) sticking (v_t
-// reversed); +1 perfectly rough (tangential energy fully returned). Note that a Walton collision
-// limited by Coulomb friction (RoughBeta::sliding) may end with beta in [0, beta0).
+// Lun & Savage's five categories of a collision by its tangential restitution
+// (docs/references.md §S.3.1): -1 smooth (surfaces slip, spins untouched); (-1, 0) sliding (slip,
+// some translational energy goes into rotation); 0 rolling (no tangential contact velocity left);
+// (0, 1) sticking (v_t reversed); +1 perfectly rough (tangential energy fully returned). Note that
+// a Walton collision limited by Coulomb friction (RoughBeta::sliding) may end with beta in
+// [0, beta0).
 enum class RoughRegime { Smooth, Sliding, Rolling, Sticking, PerfectlyRough };
 
 inline RoughRegime lun_savage_regime(double beta) {

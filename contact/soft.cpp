@@ -38,7 +38,8 @@ double force(const Y& y, double c) {
 }  // namespace
 
 ClippedHertz hertz_clipped_collision(double zeta) {
-  // Elastic: contact ends at X = 0 after 2.94328 X_max, X_max = (5/4)^(2/5) (REFERENCES 1.2).
+  // Elastic: contact ends at X = 0 after 2.94328 X_max, X_max = (5/4)^(2/5)
+  // (docs/references.md §1.2).
   if (zeta <= 0.0) return {1.0, 2.9432751843 * std::pow(1.25, 0.4)};
   const double c = 2.0 * zeta * std::sqrt(1.5);
   const double h = 1.0 / 2048.0;

@@ -1,7 +1,7 @@
 // Soft-sphere (time-driven) contact laws: effective parameters, normal laws (linear
 // spring-dashpot, Hertz with Tsuji-type damping, viscoelastic Kuwabara-Kono/Brilliantov) and the
 // Mindlin-Deresiewicz / Cundall-Strack tangential spring with Coulomb cap. Pure functions of the
-// relative state of one contact; REFERENCES sec. 6 gives every formula used here.
+// relative state of one contact; docs/references.md §6 gives every formula used here.
 //
 // Conventions (all laws):
 //  * n is the unit contact normal pointing from j to i (n = (x_i - x_j)/|x_i - x_j|; for a plane
@@ -63,7 +63,7 @@ inline constexpr double inertia_factor() {
 }
 
 // ---------------------------------------------------------------------------------------------
-// Effective parameters (REFERENCES 6.1, LIGGGHTS global_properties.cpp). A plane wall is
+// Effective parameters (docs/references.md §6.1, LIGGGHTS global_properties.cpp). A plane wall is
 // infinitely large and heavy: pass kPlane (+infinity) as its radius and mass; a rigid wall also
 // has young = kPlane, so its compliance terms vanish (E* = E/(1 - nu^2) for the particle alone).
 
@@ -118,7 +118,7 @@ inline PairParams wall_params(const SoftMaterial& a, double R, double m,
 // stiffness dF/d(delta) (linear: k_n; Hertz: S_n = 2 E* sqrt(R* delta)) and zeta the damping
 // ratio (fraction of critical damping).
 
-// Linear spring-dashpot that may pull until delta = 0 (REFERENCES 6.3):
+// Linear spring-dashpot that may pull until delta = 0 (docs/references.md §6.3):
 // e = exp(-pi zeta/sqrt(1 - zeta^2))  <=>  zeta = -ln e / sqrt(pi^2 + ln^2 e).
 inline double linear_damping_ratio(double e) {
   if (e >= 1.0) return 0.0;
@@ -171,10 +171,10 @@ inline double linear_clipped_damping_ratio(double e) {
   return 0.5 * (lo + hi);
 }
 
-// Hertz with Tsuji-type damping, the "naive" rule (LIGGGHTS normal_model_hertz.h, REFERENCES
-// 6.2): gamma_n = -2 sqrt(5/6) beta sqrt(S_n m*), beta = ln e / sqrt(ln^2 e + pi^2), i.e.
-// zeta = sqrt(5/6) |beta|. It is exact as e -> 1 (first-order energy loss) but, with the force
-// clipped at zero, misses at low e.
+// Hertz with Tsuji-type damping, the "naive" rule (LIGGGHTS normal_model_hertz.h,
+// docs/references.md §6.2): gamma_n = -2 sqrt(5/6) beta sqrt(S_n m*),
+// beta = ln e / sqrt(ln^2 e + pi^2), i.e. zeta = sqrt(5/6) |beta|. It is exact as e -> 1
+// (first-order energy loss) but, with the force clipped at zero, misses at low e.
 inline double tsuji_damping_ratio(double e) {
   if (e >= 1.0) return 0.0;
   const double l = std::log(e);
@@ -232,9 +232,9 @@ struct SoftLaw {
   double restitution = 1.0;  // e in (0, 1] (Linear, Hertz)
   // Linear: normal stiffness k_n [N/m]; linear_stiffness() gives LIGGGHTS' Hertz-equivalent value.
   double stiffness = 0.0;
-  // Linear: let the dashpot pull (F_n < 0) until delta = 0. Then gamma from REFERENCES 6.3 gives e
-  // and t_c = sqrt(m*/k) sqrt(pi^2 + ln^2 e) exactly. Default false: the force is clipped at zero
-  // and gamma is chosen by linear_clipped_damping_ratio(), which again gives e exactly.
+  // Linear: let the dashpot pull (F_n < 0) until delta = 0. Then gamma from docs/references.md §6.3
+  // gives e and t_c = sqrt(m*/k) sqrt(pi^2 + ln^2 e) exactly. Default false: the force is clipped
+  // at zero and gamma is chosen by linear_clipped_damping_ratio(), which again gives e exactly.
   bool attractive = false;
   // Linear: an explicit normal damping coefficient gamma_n [kg/s] (Material::dissipation); >= 0
   // overrides `restitution` (the damping ratio then varies with m* from pair to pair).
@@ -308,15 +308,15 @@ struct SoftLaw {
 };
 
 // LIGGGHTS Hooke stiffness that gives the Hertz maximum overlap at the characteristic speed V
-// (REFERENCES 6.3): k_n = (16/15) sqrt(R*) E* (15 m* V^2/(16 sqrt(R*) E*))^(1/5).
+// (docs/references.md §6.3): k_n = (16/15) sqrt(R*) E* (15 m* V^2/(16 sqrt(R*) E*))^(1/5).
 inline double linear_stiffness(const PairParams& p, double V) {
   const double s = std::sqrt(p.Rstar) * p.Estar;
   return (16.0 / 15.0) * s * std::pow(15.0 * p.mstar * V * V / (16.0 * s), 0.2);
 }
 
 // Tangential restitution of a sticking contact (the beta0 of the rough hard-sphere rule,
-// REFERENCES 6.6: v_t' = -beta0 v_t for the contact-point velocity) for the linear law with an
-// undamped tangential spring and no slip. DERIVED: the contact-point velocity u obeys
+// docs/references.md §6.6: v_t' = -beta0 v_t for the contact-point velocity) for the linear law
+// with an undamped tangential spring and no slip. DERIVED: the contact-point velocity u obeys
 // m* u' = -(1 + 1/q) k_t xi (q = I/(m R^2); both bodies solid with the same q), so
 // u(t) = u0 cos(omega_t t), omega_t = sqrt((1 + 1/q) k_t/m*), and over the contact time t_c
 // beta0 = -cos(omega_t t_c). With t_c = t_tau pi/omega_n (t_tau = 1 for e = 1 and
@@ -370,7 +370,7 @@ inline SoftContact soft_contact(const SoftLaw& law, const PairParams& p) {
     c.roll_kr = 2.25 * c.roll_lever * c.roll_lever;
     c.roll_cr = 2.0 * law.rolling_damping * std::sqrt(p.Ir);
   }
-  const double hertz_k = (4.0 / 3.0) * p.Estar * std::sqrt(p.Rstar);  // REFERENCES 6.2
+  const double hertz_k = (4.0 / 3.0) * p.Estar * std::sqrt(p.Rstar);  // docs/references.md §6.2
   const double mindlin_k = 8.0 * p.Gstar * std::sqrt(p.Rstar);        // S_t = 8 G* sqrt(R* delta)
   switch (law.normal) {
     case NormalLaw::Linear: {
@@ -378,7 +378,7 @@ inline SoftContact soft_contact(const SoftLaw& law, const PairParams& p) {
       c.kn = law.stiffness;
       c.zeta = law.gamma_n >= 0.0 ? law.gamma_n / (2.0 * std::sqrt(p.mstar * c.kn))
                                   : law.damping_ratio();
-      c.gn = 2.0 * c.zeta * std::sqrt(p.mstar * c.kn);  // REFERENCES 6.3
+      c.gn = 2.0 * c.zeta * std::sqrt(p.mstar * c.kn);  // docs/references.md §6.3
       c.kt = law.kt_ratio * c.kn;
       // Same damping ratio in both directions: gamma_t = gamma_n sqrt(k_t/k_n) (LIGGGHTS uses
       // gamma_t = gamma_n, which is this rule for k_t = k_n).
@@ -388,7 +388,7 @@ inline SoftContact soft_contact(const SoftLaw& law, const PairParams& p) {
     case NormalLaw::Hertz: {
       c.zeta = law.damping_ratio();
       c.kn = hertz_k;
-      // gamma_n = 2 zeta sqrt(S_n m*) with S_n = 2 E* sqrt(R* delta) (REFERENCES 6.2)
+      // gamma_n = 2 zeta sqrt(S_n m*) with S_n = 2 E* sqrt(R* delta) (docs/references.md §6.2)
       c.gn = 2.0 * c.zeta * std::sqrt(2.0 * p.Estar * std::sqrt(p.Rstar) * p.mstar);
       c.kt = mindlin_k;
       // gamma_t = 2 zeta sqrt(S_t m*) (LIGGGHTS; Yade's betas = betan)
@@ -575,7 +575,7 @@ template <int D, NormalLaw Law>
 }
 
 // Force on i for one contact; updates the history. Tangential model (Cundall & Strack,
-// Geotechnique 29, 47 (1979); Mindlin-Deresiewicz stiffness for Hertz, REFERENCES 6.2):
+// Geotechnique 29, 47 (1979); Mindlin-Deresiewicz stiffness for Hertz, docs/references.md §6.2):
 //  1. rotate xi into the current tangent plane, keeping its length (LIGGGHTS shear history):
 //     xi <- (xi - (xi.n) n) |xi|/|xi - (xi.n) n|;
 //  2. xi += tangential part of dxi;

@@ -1,6 +1,6 @@
 // Contact durations, Hertz impact peaks and time-step limits for soft-sphere (time-driven)
-// integration. REFERENCES 1.2 (Hertz impact, Johnson 1985 as used by Chung & Ooi 2011), 6.3
-// (linear spring-dashpot) and 6.4 (Rayleigh step).
+// integration. docs/references.md §1.2 (Hertz impact, Johnson 1985 as used by Chung & Ooi 2011),
+// §6.3 (linear spring-dashpot) and §6.4 (Rayleigh step).
 #pragma once
 
 #include <cmath>
@@ -10,7 +10,8 @@
 
 namespace matep {
 
-// 2 int_0^1 (1 - x^(5/2))^(-1/2) dx = (4/5) sqrt(pi) Gamma(2/5)/Gamma(9/10) (REFERENCES 1.2, 9).
+// 2 int_0^1 (1 - x^(5/2))^(-1/2) dx = (4/5) sqrt(pi) Gamma(2/5)/Gamma(9/10)
+// (docs/references.md §1.2, §9).
 inline constexpr double kHertzDurationFactor = 2.9432751843;
 // kHertzDurationFactor (15/16)^(2/5): t_c = 2.86827 (m*^2/(R* E*^2 v))^(1/5).
 inline constexpr double kHertzTimeFactor = 2.8682656992;
@@ -41,8 +42,8 @@ inline double hertz_contact_time(const PairParams& p, double v) {
   return hertz_contact_time(p.mstar, p.Rstar, p.Estar, v);
 }
 
-// Linear spring-dashpot duration with the force allowed to pull until delta = 0 (REFERENCES 6.3):
-// t_c = sqrt(m*/k) sqrt(pi^2 + ln^2 e).
+// Linear spring-dashpot duration with the force allowed to pull until delta = 0
+// (docs/references.md §6.3): t_c = sqrt(m*/k) sqrt(pi^2 + ln^2 e).
 inline double linear_contact_time(double mstar, double k, double e) {
   const double l = e < 1.0 ? std::log(e) : 0.0;
   return std::sqrt(mstar / k) * std::sqrt(std::numbers::pi * std::numbers::pi + l * l);
@@ -54,7 +55,7 @@ inline double linear_clipped_contact_time(double mstar, double k, double e) {
   return std::sqrt(mstar / k) * linear_clipped_collision(linear_clipped_damping_ratio(e)).time;
 }
 
-// Rayleigh-wave time step (REFERENCES 6.4; Yade RayleighWaveTimeStep, DIRT sweep.py):
+// Rayleigh-wave time step (docs/references.md §6.4; Yade RayleighWaveTimeStep, DIRT sweep.py):
 // dt_R = pi R sqrt(rho/G)/(0.1631 nu + 0.8766), G = E/(2(1 + nu)). Practice: 0.1-0.3 dt_R.
 inline double rayleigh_time(double R, double rho, double E, double nu) {
   const double G = E / (2.0 * (1.0 + nu));
@@ -108,7 +109,7 @@ inline double soft_contact_time(const SoftLaw& law, const PairParams& p, double 
     const double zeta =
         law.gamma_n >= 0.0 ? law.gamma_n / (2.0 * std::sqrt(p.mstar * k)) : law.damping_ratio();
     const double t0 = std::sqrt(p.mstar / k);
-    if (law.attractive) {  // pi/omega with omega = omega0 sqrt(1 - zeta^2) (REFERENCES 6.3)
+    if (law.attractive) {  // pi/omega, omega = omega0 sqrt(1 - zeta^2) (docs/references.md §6.3)
       return zeta < 1.0 ? t0 * std::numbers::pi / std::sqrt(1.0 - zeta * zeta)
                         : t0 * linear_clipped_collision(zeta).time;  // overdamped: never returns
     }

@@ -4,8 +4,8 @@
 // A pair is rough when its mixed friction is > 0 or either material sets `tangential`; every
 // other pair keeps the smooth operator (no rotation). The mixing rule is the soft-sphere engine's
 // (engine/soft_plan.cpp): the mean of the two materials' values, a value set on one side only
-// used alone. Defaults: law "walton", mu = 0, beta0 = 0.4 (the seed's sec. 3.1 sticking value
-// after Maw's data; Lun & Bent).
+// used alone. Defaults: law "walton", mu = 0, beta0 = 0.4 (the seed report's sticking value after
+// Maw's data; Lun & Bent; docs/references.md §S.3.1).
 #pragma once
 
 #include <fmt/format.h>
@@ -20,7 +20,8 @@
 
 namespace matep {
 
-// Default sticking tangential restitution of a rough EDM pair (seed sec. 3.1).
+// Default sticking tangential restitution of a rough EDM pair (seed report,
+// docs/references.md §S.3.1).
 inline constexpr double kDefaultRoughBeta0 = 0.4;
 
 inline std::optional<TangentialLaw> tangential_law_of(const std::string& name) {

@@ -15,7 +15,8 @@
 namespace matep {
 
 // Default time step = kSoftStepFraction * min(Rayleigh time, contact time at the largest expected
-// impact speed). The seed report asks for at most 2% of the shortest collision time.
+// impact speed). The seed report asks for at most 2% of the shortest collision time
+// (docs/references.md §S.3.2.3).
 inline constexpr double kSoftStepFraction = 0.02;
 
 struct SoftPlan {

@@ -1,8 +1,8 @@
 // Time-driven dynamics (TDM) of soft spheres (D = 3) and disks (D = 2): velocity Verlet with a
 // fixed step, contact laws of contact/soft.hpp chosen per material pair (engine/soft_plan.hpp),
 // a cell-built Verlet list with a skin that is rebuilt only when some particle has moved more
-// than half the skin (seed report sec. 2.3), tangential contact history that survives rebuilds,
-// plane walls, periodic axes, gravity and, when some contact has friction, rotation.
+// than half the skin (docs/references.md §S.2.3), tangential contact history that survives
+// rebuilds, plane walls, periodic axes, gravity and, when some contact has friction, rotation.
 //
 // Scheme (step h, a = F/m + g, and likewise for spins with the torque over I = q m R^2):
 //   v(t + h/2) = v(t) + h/2 a(t);  x(t + h) = x(t) + h v(t + h/2);

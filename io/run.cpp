@@ -115,14 +115,14 @@ class ProgressObserver final : public Observer<2>, public Observer<3> {
 };
 
 // Contact value of the pair distribution: Carnahan-Starling (3D), Henderson (2D)
-// (REFERENCES 2.2).
+// (docs/references.md §2.2).
 double contact_g(int d, double phi) {
   if (d == 3) return (1.0 - phi / 2.0) / std::pow(1.0 - phi, 3);
   return (1.0 - 7.0 * phi / 16.0) / std::pow(1.0 - phi, 2);
 }
 
-// Enskog's collision rate of the initial state (REFERENCES 2.1), when it applies (a moving gas
-// below close packing); the packing fraction and temperature with it.
+// Enskog's collision rate of the initial state (docs/references.md §2.1), when it applies (a moving
+// gas below close packing); the packing fraction and temperature with it.
 template <int D>
 struct Enskog {
   double phi = 0.0, T = 0.0;
@@ -535,7 +535,7 @@ std::string describe(const Scene& scene, const System<D>& sys) {
   if (sys.gravity.squaredNorm() > 0.0)
     s += fmt::format("gravity      ({})\n", fmt::join(sys.gravity, ", "));
   if (scene.tc > 0.0) s += fmt::format("TC model     collisions within {} of a previous one are elastic\n", scene.tc);
-  // Predicted collision rate from Enskog theory (REFERENCES 2.1).
+  // Predicted collision rate from Enskog theory (docs/references.md §2.1).
   const Enskog<D> en = enskog<D>(sys);
   s += fmt::format("packing      {:.4f}\n", en.phi);
   if (en.rate)

@@ -23,7 +23,7 @@ Cases and their error measures (README: "Speed and accuracy"):
   +1.7 % to every method), run from 4 random starts (run.seed = 1..4) per point: <T>(t) is their
   mean, wall_seconds their median. Reference: Haff's law T(t) = T0/(1 + t/t0)^2 with
   1/t0 = (1 - e^2) omega_E(T0)/(2d), omega_E the Enskog collision rate with the Carnahan-Starling
-  g(sigma) (REFERENCES 2.1, 2.4): t0 = 17.94. error = root mean square of <T>(t)/T_Haff(t) - 1
+  g(sigma) (docs/references.md §2.1, §2.4): t0 = 17.94. error = root mean square of <T>(t)/T_Haff(t) - 1
   over the thermo rows (every 0.25, t > 0). Also written: error_vs_edm, the same RMS against the
   EDM mean from the same four starts (the hard-sphere answer, free of Haff's mean-field error),
   and noise, the standard error of the seed mean (the statistical floor of both measures; the
@@ -111,7 +111,7 @@ def ball_answer(case, runs):
 
 
 def haff_t0(phi, e, n_density, sigma, mass, T0, d=3):
-    """REFERENCES 2.4: 1/t0 = (1 - e^2) omega_E(T0) / (2d), omega_E (3D) = 4 sqrt(pi) n sigma^2 g sqrt(T/m),
+    """docs/references.md §2.4: 1/t0 = (1 - e^2) omega_E(T0) / (2d), omega_E (3D) = 4 sqrt(pi) n sigma^2 g sqrt(T/m),
     g(sigma) = (1 - phi/2)/(1 - phi)^3 (Carnahan-Starling)."""
     g = (1.0 - phi / 2.0) / (1.0 - phi) ** 3
     omega = 4.0 * math.sqrt(math.pi) * n_density * sigma ** 2 * g * math.sqrt(T0 / mass)

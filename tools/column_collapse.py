@@ -48,7 +48,7 @@ FIELDS = ["method", "a_target", "L_i", "a", "H_i", "L_f", "runout", "published",
 
 def published(a: float) -> float:
     """Lube et al. 2005 (PRE 72, 041301) and Lajeunesse et al. 2005 (Phys. Fluids 17, 103302),
-    REFERENCES sec. 7: 1.2 a below a ~ 2.3 (where the two laws cross), 1.9 a^(2/3) above."""
+    docs/references.md §7: 1.2 a below a ~ 2.3 (where the two laws cross), 1.9 a^(2/3) above."""
     return 1.2 * a if a < (1.9 / 1.2) ** 3 else 1.9 * a ** (2.0 / 3.0)
 
 

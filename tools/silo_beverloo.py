@@ -14,7 +14,7 @@ excluded; the bin stays more than one diameter full), its uncertainty the spread
 the window's four quarters over sqrt(4). The rate of the window's first half against its second
 tests that W does not depend on the fill height (Janssen).
 
-Beverloo (REFERENCES sec. 7): W^(2/5) = (C rho_b sqrt(g))^(2/5) (D - k d) is a straight line in D;
+Beverloo (docs/references.md §7): W^(2/5) = (C rho_b sqrt(g))^(2/5) (D - k d) is a straight line in D;
 the least-squares line through the TDM points gives k from its intercept and C from its slope, with
 their standard errors from the fit's covariance. rho_b is the settled bed's bulk density (grains
 between z = 2 cm and 12 cm in the bin). Writes OUT/silo_beverloo.csv (one row per run) and

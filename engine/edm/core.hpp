@@ -1105,8 +1105,9 @@ class EdmCore {
     s.grains_in = grains_in_;
     s.mass_in = mass_in_;
     derived().ext_sample(s);
-    // P V = N T + (1/(d dt)) sum_collisions r_ij . dp_i  (REFERENCES 2.3; Smallenburg's EDMD).
-    // The kinetic part uses the mean of the kinetic energies at the two ends of the interval.
+    // P V = N T + (1/(d dt)) sum_collisions r_ij . dp_i  (docs/references.md §2.3;
+    // Smallenburg's EDMD). The kinetic part uses the mean of the kinetic energies at the two ends
+    // of the interval.
     const double ke_mean = prev_ke_ < 0.0 ? s.kinetic_energy : 0.5 * (prev_ke_ + s.kinetic_energy);
     const double V = sys_.volume();
     s.pressure = (2.0 * ke_mean / D + (interval > 0.0 ? virial_ / (D * interval) : 0.0)) / V;

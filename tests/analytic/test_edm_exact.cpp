@@ -52,7 +52,7 @@ void check_bouncing_ball_impacts() {
   const RunResult<D> res = run_edm<D>(sys, set, QueueKind::Calendar, {&rec});
   ASSERT_EQ(res.status, "ok");
   ASSERT_GE(rec.records.size(), 20u);
-  // k-th impact: t_k = t1 (1 + 2 sum_{j=1}^{k-1} e^j), t1 = sqrt(2h/g) (REFERENCES 3.2).
+  // k-th impact: t_k = t1 (1 + 2 sum_{j=1}^{k-1} e^j), t1 = sqrt(2h/g) (docs/references.md §3.2).
   const double t1 = std::sqrt(2.0 * h / g);
   double sum = 0.0, ej = 1.0;
   for (int k = 1; k <= 20; ++k) {

@@ -87,8 +87,9 @@ Material rough_material(double e, std::optional<double> mu, std::string law, std
   return m;
 }
 
-// The five regimes on a floor (Lun & Savage 1987 via the seed's sec. 3.1). For a wall and no
-// initial spin, J_t = -(1 + beta) m_t v_t with m_t = m q/(1 + q) (contact/rough.hpp), so
+// The five regimes on a floor (Lun & Savage 1987 via the seed report, docs/references.md §S.3.1).
+// For a wall and no initial spin, J_t = -(1 + beta) m_t v_t with m_t = m q/(1 + q)
+// (contact/rough.hpp), so
 //   v_t' = v_t (1 - (1 + beta) q/(1 + q)),  omega_z' = -(1 + beta) v_t/((1 + q) R)
 // (the spin of a ball whose contact point the friction holds back; omega_z < 0 rolls it along +x),
 // and in gross sliding |J_t| = mu J_n = mu (1 + e) m v_n, so omega_z' = -mu (1 + e) v_n/(q R):
@@ -171,8 +172,9 @@ void check_wall_regimes() {
 TEST(EdmRough, WallImpactFiveRegimesSpheres) { check_wall_regimes<3>(); }
 TEST(EdmRough, WallImpactFiveRegimesDisks) { check_wall_regimes<2>(); }
 
-// The seed's FEM fit (eq. 3.30 as read in contact/rough.hpp) at a steep impact, where it is
-// below the Coulomb cap: (1 + beta)/(1 + e) = 0.12 a^2.98 + 0.92 with a = arctan(v_n/v_t).
+// The seed's FEM fit (eq. 3.30, docs/references.md §S.3.3.3, as read in contact/rough.hpp) at a
+// steep impact, where it is below the Coulomb cap: (1 + beta)/(1 + e) = 0.12 a^2.98 + 0.92 with
+// a = arctan(v_n/v_t).
 TEST(EdmRough, WallImpactFemFit) {
   const double e = 0.8, R = 0.05, vn = 2.0, vt = 1.0, q = 0.4;
   const auto w = impact<3>(rough_material(e, 1.0, "fem_fit", std::nullopt), vt, vn, R);
@@ -207,8 +209,8 @@ TEST(EdmRough, MovingWallActsOnRelativeVelocity) {
 }
 
 // ---------------------------------------------------------------------------------------------
-// Chung & Ooi (2011) tests 6-8 (REFERENCES 1.4) through the engine: bodies with spin and no
-// tangential velocity of the centres (R = 0.1 m, v_n = 0.2 m/s per body, mu = 0.4, e = 0.5,
+// Chung & Ooi (2011) tests 6-8 (docs/references.md §1.4) through the engine: bodies with spin and
+// no tangential velocity of the centres (R = 0.1 m, v_n = 0.2 m/s per body, mu = 0.4, e = 0.5,
 // aluminium alloy density 2700), on a wall (tests 6/8) and head-on pairs with equal spins (test 7).
 // The digitised beta follows the sliding line beta = -1 + x, x = (1 + 1/q) mu (1 + e) v_n/v_t
 // (3.5 mu (1 + e) v_n/v_t for spheres) for x <= 1; Walton's rule with beta0 = 1 must give it

@@ -1,10 +1,10 @@
 // Fixed grains (System::fixed, scene key [particles.NAME] fixed = true) in the three engines, against
 // closed forms: a grain dropped head-on onto a fixed grain bounces as off a floor (impact times and
-// speeds of the bouncing ball, REFERENCES 3.2), an oblique impact reflects the normal velocity
-// component about the contact normal, a grain resting on a fixed grain under gravity has the static
-// Hertz overlap of its weight with R* = R1 R2/(R1 + R2), and a fixed grain's position is bit-identical
-// at the end of every run. The scene key, its refusals, `matep check` and `matep log verify` of a
-// rough bed on a fixed base are tested through the command line.
+// speeds of the bouncing ball, docs/references.md §3.2), an oblique impact reflects the normal
+// velocity component about the contact normal, a grain resting on a fixed grain under gravity has
+// the static Hertz overlap of its weight with R* = R1 R2/(R1 + R2), and a fixed grain's position is
+// bit-identical at the end of every run. The scene key, its refusals, `matep check` and
+// `matep log verify` of a rough bed on a fixed base are tested through the command line.
 #include <gtest/gtest.h>
 
 #include <cmath>
@@ -104,7 +104,7 @@ void expect_fixed_unmoved(const System<D>& sys, const RunResult<D>& res) {
 
 // Dropped from a gap h above the fixed grain's top, the grain bounces as a ball on a floor: the
 // k-th impact at t_k = t1 (1 + 2 sum_{j=1}^{k-1} e^j), t1 = sqrt(2h/g), at speed e^(k-1) sqrt(2gh)
-// (REFERENCES 3.2), and its first rebound reaches the gap e^2 h at t1 (1 + e).
+// (docs/references.md §3.2), and its first rebound reaches the gap e^2 h at t1 (1 + e).
 template <int D>
 void check_edm_head_on_bounce() {
   const double Rf = 0.1, R = 0.05, h = 1.0, e = 0.8;
@@ -407,7 +407,7 @@ TEST(FixedGrains, HybridDropBouncesToRestitutionHeight3D) { check_soft_drop<3>("
 
 // At rest on top of a fixed grain, the Hertz spring carries the moving grain's weight:
 // (4/3) E* sqrt(R*) delta^(3/2) = m g, R* = R1 R2/(R1 + R2), E* = E/(2 (1 - nu^2)) for one
-// material (contact/soft.hpp; REFERENCES 6.2). The grain starts touching and rings down.
+// material (contact/soft.hpp; docs/references.md §6.2). The grain starts touching and rings down.
 template <int D>
 void check_static_overlap(const char* method, bool friction) {
   const double Rf = 0.004, R = 0.002, e = 0.3, E = 1e7, nu = 0.3;
@@ -446,11 +446,12 @@ TEST(FixedGrains, HybridStaticHertzOverlap3D) { check_static_overlap<3>("hybrid"
 // Tangential springs work against a fixed grain as against any partner: a sphere hitting a fixed
 // sphere nearly head-on (normal n = y, tangential velocity v_t along x, no spin) with the linear law,
 // e = 1, k_t/k_n = q/(1 + q) (beta0 = 1, contact/soft.hpp linear_sticking_restitution) and a
-// friction that never slides, leaves with its contact-point velocity reversed (REFERENCES 6.6). The
-// contact point moves at v_c = v_x + R w_z (contact/soft.hpp conventions, n = y); the tangential
-// impulse J = m (v_x' - v_t) spins the grain by R w_z' = R^2 J/I = (v_x' - v_t)/q, so v_c' = -v_t
-// gives v_x' = v_t (1 - q)/(1 + q) = (3/7) v_t and R w_z' = -(10/7) v_t for solid spheres. The
-// overlap is kept small against R (k = 1e9): the lever arm R - delta/2 differs from R by delta/2R.
+// friction that never slides, leaves with its contact-point velocity reversed
+// (docs/references.md §6.6). The contact point moves at v_c = v_x + R w_z (contact/soft.hpp
+// conventions, n = y); the tangential impulse J = m (v_x' - v_t) spins the grain by
+// R w_z' = R^2 J/I = (v_x' - v_t)/q, so v_c' = -v_t gives v_x' = v_t (1 - q)/(1 + q) = (3/7) v_t
+// and R w_z' = -(10/7) v_t for solid spheres. The overlap is kept small against R (k = 1e9): the
+// lever arm R - delta/2 differs from R by delta/2R.
 TEST(FixedGrains, TdmStickingImpactReversesTheContactPointVelocity3D) {
   const double Rf = 0.1, R = 0.05, vn = 1.0, vt = 0.05, k = 1e9;
   Material m = test::linear_material("glass", 2500.0, k, 1.0);

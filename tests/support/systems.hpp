@@ -94,7 +94,7 @@ inline double Z_eos(int d, double phi) {
   return d == 3 ? (1.0 + phi + phi * phi - phi * phi * phi) / std::pow(1.0 - phi, 3)
                 : (1.0 + phi * phi / 8.0) / std::pow(1.0 - phi, 2);
 }
-// Enskog collision frequency per particle for sigma = m = 1 (REFERENCES 2.1).
+// Enskog collision frequency per particle for sigma = m = 1 (docs/references.md §2.1).
 inline double enskog_rate(int d, double phi, double T) {
   return (d == 3 ? 24.0 : 8.0) * phi * g_contact(d, phi) / std::sqrt(std::numbers::pi) * std::sqrt(T);
 }

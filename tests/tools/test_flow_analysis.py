@@ -76,7 +76,7 @@ def test_slab_area():
 
 
 def test_bagnold_and_inertial_number():
-    # A Bagnold flow built from mu(I) (REFERENCES sec. 7): phi uniform, u(z) = u0 + A (h^1.5 -
+    # A Bagnold flow built from mu(I) (docs/references.md §7): phi uniform, u(z) = u0 + A (h^1.5 -
     # (h - z)^1.5) with A = (2/3) (I / d) sqrt(phi g cos theta). The analysis must find h, A, u0,
     # R^2 = 1 and the inertial number I.
     D, theta, I, phi, h, u0 = chute_mu_i.D, 22.0, 0.2, 0.75, 0.046, 0.05

@@ -1,8 +1,9 @@
 // Rough (frictional) hard-sphere collision operator (contact/rough.hpp): conservation laws,
-// energy, Lun & Savage's five regimes (seed sec. 3.1), the rigid-body gross-sliding rule
-// (REFERENCES 1.3 and 6.6), Chung & Ooi (2011) tests 6-8 (REFERENCES 1.4), the seed's FEM fit
-// (eq. 3.30) and its Coulomb cap, and consistency with the soft Hertz-Mindlin collision of
-// contact/binary.hpp. Expected values come from closed forms, never from this code's output.
+// energy, Lun & Savage's five regimes (seed report, docs/references.md §S.3.1), the rigid-body
+// gross-sliding rule (docs/references.md §1.3, §6.6), Chung & Ooi (2011) tests 6-8
+// (docs/references.md §1.4), the seed's FEM fit (eq. 3.30, docs/references.md §S.3.3.3) and its
+// Coulomb cap, and consistency with the soft Hertz-Mindlin collision of contact/binary.hpp.
+// Expected values come from closed forms, never from this code's output.
 #include <gtest/gtest.h>
 
 #include <algorithm>
@@ -226,7 +227,7 @@ TEST(RoughTangentialMass, EqualInertiaFactor) {
 }
 
 // ---------------------------------------------------------------------------------------------
-// Lun & Savage's five regimes (seed sec. 3.1), two equal spheres (3D) and disks (2D).
+// Lun & Savage's five regimes (docs/references.md §S.3.1), two equal spheres (3D) and disks (2D).
 
 namespace {
 
@@ -356,14 +357,14 @@ TEST(RoughRegimes, FiveLunSavageCases3D) { check_regimes<3>(); }
 TEST(RoughRegimes, FiveLunSavageCases2D) { check_regimes<2>(); }
 
 // ---------------------------------------------------------------------------------------------
-// Gross sliding on a wall (REFERENCES 1.3, 6.6; LAMMPS spin_impact): v_t' = v_t - mu (1 + e) v_n
-// and |delta omega| = |J_t| R/I = mu (1 + e) m v_n R/(q m R^2) = mu (1 + e) v_n/(q R), i.e.
-// (5/2) mu (1 + e) v_n/R for a sphere and 2 mu (1 + e) v_n/R for a disk, turning the body
-// towards a forward roll.
+// Gross sliding on a wall (docs/references.md §1.3, §6.6; LAMMPS spin_impact):
+// v_t' = v_t - mu (1 + e) v_n and |delta omega| = |J_t| R/I = mu (1 + e) m v_n R/(q m R^2)
+// = mu (1 + e) v_n/(q R), i.e. (5/2) mu (1 + e) v_n/R for a sphere and 2 mu (1 + e) v_n/R for a
+// disk, turning the body towards a forward roll.
 
 TEST(RoughWall, GrossSlidingSphereChungOoiTest4) {
   // Chung & Ooi test 4, Al oxide, R = 2.5 mm, |v| = 3.9 m/s, mu = 0.092, e = 0.98: the published
-  // rigid-body values at 50 deg (REFERENCES 1.3): v_t'/v_t = 0.8471, omega' = -456.7 rad/s
+  // rigid-body values at 50 deg (docs/references.md §1.3): v_t'/v_t = 0.8471, omega' = -456.7 rad/s
   // (Chung & Ooi's sign, negative for a forward roll), rebound angle 29.49 deg.
   const double mu = 0.092, e = 0.98, R = 2.5e-3, V = 3.9;
   for (double th : {35.0, 40.0, 50.0, 60.0, 70.0, 80.0, 85.0}) {
@@ -445,10 +446,10 @@ TEST(RoughWall, MovingWallIsGalileanShift) {
 }
 
 // ---------------------------------------------------------------------------------------------
-// Chung & Ooi (2011) tests 6-8 (REFERENCES 1.4): spheres with initial spin and no tangential
-// velocity of the centres, v_n = 0.2 m/s per sphere, R = 0.1 m, mu = 0.4, e = 0.5. Against
-// x = (1 + 1/q) mu (1 + e) v_n/v_t (3.5 for spheres) the digitised beta follows the sliding line
-// beta = -1 + x for x <= 1 (points (0.187, -0.815) ... (0.979, -0.017)); Walton's model with
+// Chung & Ooi (2011) tests 6-8 (docs/references.md §1.4): spheres with initial spin and no
+// tangential velocity of the centres, v_n = 0.2 m/s per sphere, R = 0.1 m, mu = 0.4, e = 0.5.
+// Against x = (1 + 1/q) mu (1 + e) v_n/v_t (3.5 for spheres) the digitised beta follows the sliding
+// line beta = -1 + x for x <= 1 (points (0.187, -0.815) ... (0.979, -0.017)); Walton's model with
 // beta0 = 1 must reproduce it within 1%. Disks: the same construction with 1 + 1/q = 3.
 
 template <int D>
@@ -514,7 +515,8 @@ TEST(RoughChungOoi, Tests6to8SlidingLineDiskOnWall) { check_spin_impact<2>(false
 TEST(RoughChungOoi, Tests6to8SlidingLineTwoDisks) { check_spin_impact<2>(true); }
 
 // ---------------------------------------------------------------------------------------------
-// The seed's FEM fit (eq. 3.30, read as in contact/rough.hpp) and its Coulomb cap.
+// The seed's FEM fit (eq. 3.30, docs/references.md §S.3.3.3, read as in contact/rough.hpp) and its
+// Coulomb cap.
 
 TEST(RoughFemFit, ValuesAndSlidingCap) {
   // Uncapped (mu = infinity): (1 + beta)/(1 + e) = 0.12 atan(|v_n|/|v_t|)^2.98 + 0.92.
@@ -588,7 +590,7 @@ namespace {
 struct Mat {
   double E, nu, rho;
 };
-const Mat kAlOxide{3.8e11, 0.23, 4000.0};  // Chung & Ooi test 3/4 (REFERENCES 1.1)
+const Mat kAlOxide{3.8e11, 0.23, 4000.0};  // Chung & Ooi test 3/4 (docs/references.md §1.1)
 const Mat kAlAlloy{7.0e10, 0.33, 2700.0};  // Chung & Ooi tests 6/7
 
 // Disks get the mass of the sphere of the same radius: the soft law is the 3D Hertz-Mindlin one,

@@ -23,7 +23,7 @@ constexpr double kPi = std::numbers::pi;
 
 double sphere_mass(double rho, double R) { return rho * 4.0 / 3.0 * kPi * R * R * R; }
 
-// Al oxide sphere of Chung & Ooi test 3 (REFERENCES 1.1).
+// Al oxide sphere of Chung & Ooi test 3 (docs/references.md §1.1).
 struct AlOxide {
   static constexpr double E = 3.8e11, nu = 0.23, rho = 4000.0, R = 2.5e-3;
 };
@@ -57,7 +57,7 @@ Spin<D> random_spin(std::mt19937_64& rng, double scale) {
 }  // namespace
 
 // ---------------------------------------------------------------------------------------------
-// Effective parameters (REFERENCES 6.1 and the m*, E* columns of the table in 1.2).
+// Effective parameters (docs/references.md §6.1 and the m*, E* columns of the table in §1.2).
 
 TEST(SoftEffective, IdenticalSpheresAndRigidWall) {
   const double E = 4.8e10, nu = 0.2;
@@ -73,7 +73,7 @@ TEST(SoftEffective, IdenticalSpheresAndRigidWall) {
   EXPECT_DOUBLE_EQ(effective_mass(2.0, 6.0), 1.5);
 }
 
-// REFERENCES 1.2: m* and E* of the Chung & Ooi cases.
+// docs/references.md §1.2: m* and E* of the Chung & Ooi cases.
 TEST(SoftEffective, ChungOoiTable) {
   const double mg = sphere_mass(2800, 0.01);
   const PairParams glass = pair_params({4.8e10, 0.2}, 0.01, mg, {4.8e10, 0.2}, 0.01, mg);
@@ -91,10 +91,11 @@ TEST(SoftEffective, ChungOoiTable) {
 }
 
 // ---------------------------------------------------------------------------------------------
-// Damping ratios and contact times against REFERENCES 6.2-6.4.
+// Damping ratios and contact times against docs/references.md §6.2-§6.4.
 
 TEST(SoftDamping, PublishedBetaValues) {
-  // Thornton beta_n (REFERENCES 6.2): 0.6668, 0.2330, 0.0679, 0.00819 at e = 0.2, 0.5, 0.8, 0.98.
+  // Thornton beta_n (docs/references.md §6.2): 0.6668, 0.2330, 0.0679, 0.00819
+  // at e = 0.2, 0.5, 0.8, 0.98.
   EXPECT_NEAR(thornton_damping_ratio(0.2), 0.6668, 1e-4);
   EXPECT_NEAR(thornton_damping_ratio(0.5), 0.2330, 1e-4);
   EXPECT_NEAR(thornton_damping_ratio(0.8), 0.0679, 1e-4);
@@ -137,14 +138,14 @@ TEST(SoftDamping, ClippedLinearClosedForm) {
 }
 
 TEST(SoftTimes, LinearContactTimeTable) {
-  // REFERENCES 6.3: t_c sqrt(k/m*) = 3.1434 (e = 0.9), 3.2172 (0.5), 3.8951 (0.1).
+  // docs/references.md §6.3: t_c sqrt(k/m*) = 3.1434 (e = 0.9), 3.2172 (0.5), 3.8951 (0.1).
   EXPECT_NEAR(linear_contact_time(1.0, 1.0, 0.9), 3.1434, 1e-4);
   EXPECT_NEAR(linear_contact_time(1.0, 1.0, 0.5), 3.2172, 1e-4);
   EXPECT_NEAR(linear_contact_time(1.0, 1.0, 0.1), 3.8951, 1e-4);
   EXPECT_NEAR(linear_contact_time(4.0, 1.0, 1.0), 2.0 * kPi, 1e-12);
 }
 
-// REFERENCES 1.2 (all rows) for the closed forms; the duration constant by its Gamma form.
+// docs/references.md §1.2 (all rows) for the closed forms; the duration constant by its Gamma form.
 TEST(SoftTimes, HertzTable) {
   EXPECT_NEAR(kHertzDurationFactor, 0.8 * std::sqrt(kPi) * std::tgamma(0.4) / std::tgamma(0.9),
               1e-9);
@@ -176,7 +177,7 @@ TEST(SoftTimes, HertzTable) {
 }
 
 TEST(SoftTimes, RayleighExamples) {
-  // REFERENCES 6.4.
+  // docs/references.md §6.4.
   EXPECT_NEAR(rayleigh_time(0.01, 2800, 4.8e10, 0.2) / 1.293e-5, 1.0, 1e-3);
   EXPECT_NEAR(rayleigh_time(0.01, 2500, 2e10, 0.25) / 1.914e-5, 1.0, 1e-3);
   EXPECT_NEAR(rayleigh_time(0.1, 2699, 7e10, 0.3) / 1.075e-4, 1.0, 1e-3);
@@ -246,7 +247,8 @@ void check_linear_exact(const LinearCase& c) {
   ASSERT_TRUE(r.separated);
   EXPECT_NEAR(r.v_i.dot(n) / 3.9, c.e, 1e-6 * c.e);
   if (c.attractive) {
-    // REFERENCES 6.3: t_c = sqrt(m*/k) sqrt(pi^2 + ln^2 e); the force pulls before the end.
+    // docs/references.md §6.3: t_c = sqrt(m*/k) sqrt(pi^2 + ln^2 e); the force pulls
+    // before the end.
     const double tc =
         std::sqrt(m / law.stiffness) * std::sqrt(kPi * kPi + std::log(c.e) * std::log(c.e));
     EXPECT_NEAR(r.contact_time / tc, 1.0, 1e-6);
@@ -518,7 +520,7 @@ TEST(SoftCollision, CapMomentumNoAttraction2D) {
 }
 
 // Torque sign: a body sliding in +t over a wall (normal n) is set rolling forward. In gross
-// sliding (tan theta >= (1 + 1/q) mu (1 + e)) the rigid-body rule (REFERENCES 6.6) gives
+// sliding (tan theta >= (1 + 1/q) mu (1 + e)) the rigid-body rule (docs/references.md §6.6) gives
 // v_t' = v_t - mu (1 + e) v_n and |omega'| = mu (1 + e) v_n/(q R), with the sense of a rolling
 // wheel: 3D (t = x, n = z) omega_y' = +(5/2) mu (1 + e) v_n/R; 2D (t = x, n = y)
 // omega_z' = -2 mu (1 + e) v_n/R.
@@ -570,7 +572,7 @@ void check_sticking(double kt_ratio, double e) {
   const double vn = 0.039, ut = 0.01;
   b.v = ut * t - vn * n;
   SoftLaw law = SoftLaw::linear(linear_stiffness(wall_params(b.material, R, m), 3.9), e, 1e9);
-  law.attractive = true;  // t_c of REFERENCES 6.3
+  law.attractive = true;  // t_c of docs/references.md §6.3
   law.kt_ratio = kt_ratio;
   law.tangential_damping = false;
   BinaryOptions opt;
@@ -610,7 +612,7 @@ TEST(SoftSticking, PerfectlyRoughRatios) {
 // Viscoelastic law: small-A restitution against the first-order term DERIVED from the elastic
 // Hertz path, 1 - e = (3/2) C1 A (K/m*)^(2/5) v^(1/5) with K = (4/3) E* sqrt(R*) and
 // C1 = Gamma(3/5) sqrt(pi)/(2^(1/5) 5^(2/5) Gamma(21/10)) = 1.15344 (the constant of Ramirez,
-// Poschel, Brilliantov & Schwager, PRE 60, 4465 (1999), REFERENCES 6.5); A = 0 is elastic.
+// Poschel, Brilliantov & Schwager, PRE 60, 4465 (1999), docs/references.md §6.5); A = 0 is elastic.
 TEST(SoftViscoelastic, FirstOrderRestitution) {
   const double C1 = std::tgamma(0.6) * std::sqrt(kPi) /
                     (std::pow(2.0, 0.2) * std::pow(5.0, 0.4) * std::tgamma(2.1));

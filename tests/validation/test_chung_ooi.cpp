@@ -1,7 +1,7 @@
 // Chung & Ooi (2011) particle-impact benchmarks, tests 1-4, 6 and 7, run through the binary
 // soft-collision integrator (contact/binary.hpp). Expected numbers: the analytic Hertz values of
-// REFERENCES 1.2, the rigid-body sliding rule of 1.3 and 6.6, and the digitised Hertz-Mindlin
-// curves of 1.3 (Kratos paper_data). Nothing here is copied from this code's output.
+// docs/references.md §1.2, the rigid-body sliding rule of §1.3 and §6.6, and the digitised
+// Hertz-Mindlin curves of §1.3 (Kratos paper_data). Nothing here is copied from this code's output.
 #include <gtest/gtest.h>
 
 #include <algorithm>
@@ -46,7 +46,7 @@ double rel(double a, double b) { return std::abs(a / b - 1.0); }
 
 struct Test1Case {
   Mat mat;
-  double F, delta_um, tc_us;  // published analytic values (REFERENCES 1.2)
+  double F, delta_um, tc_us;  // published analytic values (docs/references.md §1.2)
 };
 
 void PrintTo(const Test1Case& c, std::ostream* os) { *os << c.mat.name; }
@@ -159,9 +159,9 @@ INSTANTIATE_TEST_SUITE_P(ChungOoi, ChungOoiTest3,
                                             ::testing::Values(0.1, 0.2, 0.3, 0.4, 0.5, 0.6, 0.7,
                                                               0.8, 0.9, 1.0)));
 
-// Why the correction exists: with the naive beta of LIGGGHTS (REFERENCES 6.2) and the force
-// clipped at zero, the output e misses the input by far more than 2% at low e (it is right only
-// as e -> 1).
+// Why the correction exists: with the naive beta of LIGGGHTS (docs/references.md §6.2) and the
+// force clipped at zero, the output e misses the input by far more than 2% at low e (it is right
+// only as e -> 1).
 TEST(ChungOoiTest3Naive, TsujiBetaMissesAtLowRestitution) {
   double worst = 0.0;
   for (double e : {0.1, 0.2, 0.3, 0.4, 0.5}) {
@@ -203,7 +203,7 @@ Oblique test4_impact(const SoftLaw& law, double theta_deg) {
   return o;
 }
 
-// Rigid-body gross sliding (REFERENCES 1.3): v_t' = v_t - mu (1 + e) v_n,
+// Rigid-body gross sliding (docs/references.md §1.3): v_t' = v_t - mu (1 + e) v_n,
 // omega' = -(5/2) mu (1 + e) v_n/R, rebound = atan((v_t' + omega' R)/(e v_n)).
 Oblique test4_sliding(double theta_deg) {
   const double th = theta_deg * kDeg, vn = kV4 * std::cos(th), vt = kV4 * std::sin(th);
@@ -242,7 +242,7 @@ TEST_P(ChungOoiTest4Sliding, MatchesRigidBodyRule) {
 INSTANTIATE_TEST_SUITE_P(ChungOoi, ChungOoiTest4Sliding,
                          ::testing::Values(35.0, 40.0, 50.0, 60.0, 70.0, 80.0, 85.0));
 
-// The digitised Hertz-Mindlin curves of REFERENCES 1.3 over the whole range, including the
+// The digitised Hertz-Mindlin curves of docs/references.md §1.3 over the whole range, including the
 // microslip regime below 32.5 deg.
 struct Digitised {
   double theta, ratio, omega, rebound;
@@ -289,8 +289,8 @@ TEST(ChungOoiTest4, MinimumOfTangentialRestitution) {
 // Tests 6 and 7: sphere on a plane and two equal spheres with initial spin and no tangential
 // velocity of the centres, v_n = 0.2 m/s per sphere, R = 0.1 m, mu = 0.4, e = 0.5. With the
 // contact-point tangential velocity u (relative, for the pair) and v_t' = -beta v_t, gross
-// sliding gives beta = -1 + (1 + 1/q) mu (1 + e) |v_n|/|u| (REFERENCES 6.6), v_n the relative
-// normal speed. Pair (DERIVED): a tangential impulse J on i changes u by
+// sliding gives beta = -1 + (1 + 1/q) mu (1 + e) |v_n|/|u| (docs/references.md §6.6), v_n the
+// relative normal speed. Pair (DERIVED): a tangential impulse J on i changes u by
 // J (1/m_i + 1/m_j + l_i^2/I_i + l_j^2/I_j) = J (1 + 1/q)/m* for two solid spheres of any sizes,
 // and J = mu (1 + e) m* |v_n| while sliding, so the same formula holds with m* and the relative
 // v_n: beta = -1 + 3.5 mu (1 + e) v_n/v_t.

@@ -1,5 +1,5 @@
 // Event-driven hard spheres and disks against published equations of state, Enskog's collision
-// rate, DynamO's mean free time and Haff's cooling law (REFERENCES 2.1-2.4).
+// rate, DynamO's mean free time and Haff's cooling law (docs/references.md §2.1-§2.4).
 #include <gtest/gtest.h>
 
 #include <cmath>
@@ -97,10 +97,10 @@ TEST(EdmValidation, DynamoMeanFreeTimeAnchor) {
 }
 
 // Haff's law in collision units: T / T0 = exp(-(1 - e^2) tau / d), tau = collisions per particle
-// (REFERENCES 2.4), within 2% down to T / T0 = 0.1, in a dilute box (phi = 0.05) below the
-// shear-instability length (REFERENCES 2.5: L_c / l ~ 35 in 3D and ~ 32 in 2D at e = 0.95; here
-// L / l = 15 in 3D and 26 in 2D). The ratio T / T_Haff(tau) is averaged over `seeds` independent
-// runs, which keeps the fluctuation of a finite box below the tolerance.
+// (docs/references.md §2.4), within 2% down to T / T0 = 0.1, in a dilute box (phi = 0.05) below the
+// shear-instability length (docs/references.md §2.5: L_c / l ~ 35 in 3D and ~ 32 in 2D at e = 0.95;
+// here L / l = 15 in 3D and 26 in 2D). The ratio T / T_Haff(tau) is averaged over `seeds`
+// independent runs, which keeps the fluctuation of a finite box below the tolerance.
 template <int D>
 void check_haff(int n_side, int seeds) {
   const double e = 0.95, phi = 0.05;

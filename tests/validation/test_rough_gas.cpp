@@ -139,7 +139,8 @@ TEST(RoughGas, EdmAndTdmAgreeOnTheSettledRatio) {
     System<3> soft = s;
     Material& m = soft.materials[0];
     m.contact = "linear";
-    // Linear spring-dashpot contact time t_c = sqrt(m*/k) sqrt(pi^2 + ln^2 e) (REFERENCES 6.3).
+    // Linear spring-dashpot contact time t_c = sqrt(m*/k) sqrt(pi^2 + ln^2 e)
+    // (docs/references.md §6.3).
     const double l = std::log(kE);
     m.stiffness = 0.5 * (std::numbers::pi * std::numbers::pi + l * l) / (tc * tc);
     TdmSettings ts;

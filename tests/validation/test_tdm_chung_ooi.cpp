@@ -2,9 +2,9 @@
 // through the time-driven engine itself (engine/tdm.hpp: run_tdm on a 2-particle or particle +
 // plane-wall System, gravity off), not through the reference integrator of contact/binary.hpp
 // (that one is checked in tests/validation/test_chung_ooi.cpp). Expected numbers: the analytic
-// Hertz values published by Chung & Ooi (their tables for tests 1-3, REFERENCES 1.2), the
-// rigid-body gross-sliding rule (REFERENCES 1.3 and 6.6) and the digitised Hertz-Mindlin curve of
-// test 4 (REFERENCES 1.3). Nothing here is copied from this code's output.
+// Hertz values published by Chung & Ooi (their tables for tests 1-3, docs/references.md §1.2), the
+// rigid-body gross-sliding rule (docs/references.md §1.3 and §6.6) and the digitised Hertz-Mindlin
+// curve of test 4 (docs/references.md §1.3). Nothing here is copied from this code's output.
 #include <gtest/gtest.h>
 
 #include <algorithm>
@@ -354,7 +354,8 @@ TEST(TdmChungOoiTest4, SlidingRuleOverTheSlidingRange) {
 
 TEST(TdmChungOoiTest4, MinimumOfTangentialRestitutionNear20Degrees) {
   // Below the sliding threshold (micro-slip) v_t'/v_t dips to a minimum of about 0.62 near 20 deg
-  // (Chung & Ooi 2011, fig. of test 4; digitised minimum 0.616 at 20.1 deg, REFERENCES 1.3).
+  // (Chung & Ooi 2011, fig. of test 4; digitised minimum 0.616 at 20.1 deg,
+  // docs/references.md §1.3).
   double best = 1.0, at = 0.0;
   for (double th = 10.0; th <= 30.0; th += 1.0) {
     const double r = test4_impact(th).ratio;
@@ -374,7 +375,8 @@ TEST(TdmChungOoiTest4, MinimumOfTangentialRestitutionNear20Degrees) {
 // Tests 6 and 7: a spinning sphere (no tangential velocity of the centre) on a plane, and two
 // equal spinning spheres, R = 0.1 m, mu = 0.4, e = 0.5, v_n = 0.2 m/s per sphere. In the gross
 // sliding range the tangential restitution of the contact point, v_t' = -beta v_t, is
-// beta = -1 + 3.5 mu (1 + e) v_n/v_t (rigid-body impulse, REFERENCES 6.6; v_n, v_t relative).
+// beta = -1 + 3.5 mu (1 + e) v_n/v_t (rigid-body impulse, docs/references.md §6.6;
+// v_n, v_t relative).
 
 namespace {
 

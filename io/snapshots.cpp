@@ -35,7 +35,12 @@ const char* index_type(std::size_t n) { return n <= 256 ? "UInt8" : n <= 65536 ?
 // Data Section"; this build runs on little-endian machines only, checked in io/output.cpp).
 class VtkArrays {
  public:
-  VtkArrays(CheckedFile& f, bool binary, bool single) : f_(f), binary_(binary), single_(single) {}
+  // `raw` (the appended block) and the scratch vectors are the writer's, kept from one snapshot to
+  // the next: fresh buffers of tens of MB would cost page faults at every snapshot.
+  VtkArrays(CheckedFile& f, bool binary, bool single, VtkBuffers& buf)
+      : f_(f), binary_(binary), single_(single), raw_(buf.raw), f32_(buf.f32), f64_(buf.f64) {
+    raw_.clear();
+  }
   // Floating-point arrays: n tuples of `comps` components, get(i, double* out).
   template <class Get>
   void reals(const char* name, std::size_t n, int comps, Get get) {
@@ -118,10 +123,14 @@ class VtkArrays {
   }
   template <class T, class Get>
   void put_ints(std::size_t n, Get get) {
-    std::vector<T> b;
-    b.reserve(n);
-    for (std::size_t i = 0; i < n; ++i) b.push_back(static_cast<T>(get(i)));
-    end_block(b);
+    const std::uint64_t bytes = n * sizeof(T);
+    const std::size_t at = raw_.size();
+    raw_.resize(at + 8 + bytes);
+    std::memcpy(raw_.data() + at, &bytes, 8);
+    for (std::size_t i = 0; i < n; ++i) {
+      const T v = static_cast<T>(get(i));
+      std::memcpy(raw_.data() + at + 8 + i * sizeof(T), &v, sizeof(T));
+    }
   }
   template <class T>
   std::vector<T>& scratch() {
@@ -130,9 +139,9 @@ class VtkArrays {
   }
   CheckedFile& f_;
   bool binary_, single_;
-  std::vector<char> raw_;
-  std::vector<float> f32_;
-  std::vector<double> f64_;
+  std::vector<char>& raw_;
+  std::vector<float>& f32_;
+  std::vector<double>& f64_;
 };
 
 }  // namespace
@@ -189,7 +198,7 @@ std::string SnapshotWriter<D>::wall_file(std::size_t w, double t) {
 // The grains as one PolyData piece: the points, their data, and one poly-vertex cell holding them
 // all (so that ParaView draws them without a filter).
 template <int D>
-void SnapshotWriter<D>::write_vtk(const std::string& path, const Snapshot<D>& snap, bool binary) const {
+void SnapshotWriter<D>::write_vtk(const std::string& path, const Snapshot<D>& snap, bool binary) {
   CheckedFile f(path, "w");
   const std::size_t n = snap.x.size();
   f.print("<?xml version=\"1.0\"?>\n<VTKFile type=\"PolyData\" version=\"1.0\" byte_order=\"LittleEndian\"{}>\n"
@@ -201,7 +210,7 @@ void SnapshotWriter<D>::write_vtk(const std::string& path, const Snapshot<D>& sn
           "NumberOfPolys=\"0\">\n      <Points>\n",
           binary ? " header_type=\"UInt64\"" : "", snap.time, legend(labels_.group_names), legend(labels_.materials),
           snap.time, n, n > 0 ? 1 : 0);
-  VtkArrays a(f, binary, formats_.single);
+  VtkArrays a(f, binary, formats_.single, buffers_);
   a.reals("position", n, 3, [&](std::size_t i, double* c) { to3<D>(snap.x[i], c); });
   f.puts("      </Points>\n      <PointData Scalars=\"radius\" Vectors=\"velocity\">\n");
   a.reals("radius", n, 1, [&](std::size_t i, double* c) { c[0] = snap.radius[i]; });

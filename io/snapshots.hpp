@@ -56,6 +56,13 @@ struct SnapshotSeriesMark {
   }
 };
 
+// The binary VTK writer's buffers, reused from one snapshot to the next.
+struct VtkBuffers {
+  std::vector<char> raw;
+  std::vector<float> f32;
+  std::vector<double> f64;
+};
+
 template <int D>
 class SnapshotWriter final : public Observer<D> {
  public:
@@ -75,7 +82,7 @@ class SnapshotWriter final : public Observer<D> {
   void resume(const Mark& m);
 
  private:
-  void write_vtk(const std::string& path, const Snapshot<D>& snap, bool binary) const;
+  void write_vtk(const std::string& path, const Snapshot<D>& snap, bool binary);
   void write_xyz(const std::string& path, const Snapshot<D>& snap) const;
   void write_lammps(const std::string& path, const Snapshot<D>& snap, std::size_t frame) const;
   std::string wall_file(std::size_t w, double t);  // writes it when needed; the relative path
@@ -90,6 +97,7 @@ class SnapshotWriter final : public Observer<D> {
   Vec<D> lower_, upper_;
   std::array<bool, D> periodic_;
   bool spins_;
+  VtkBuffers buffers_;
   std::vector<std::string> static_file_;  // per wall: its file once written (walls at rest)
   // (time, files relative to dir_: the grains' in each format, then each wall's)
   std::vector<std::pair<double, std::vector<std::string>>> written_;

@@ -1,5 +1,6 @@
 """The Python module's suite (run by the test command through ctest): scenes built as dicts in
-Python, run with each method, every output read back and the physics it shows checked against
+Python, run with each method, every output read back (the XYZ and LAMMPS snapshots also by ASE)
+and the physics it shows checked against
 closed forms: a ball dropped on a floor (collision times, restitution, the Zeno time), a ball
 resting on a linear spring (overlap m g / k), grains falling out of an open face (the free-fall
 time), a hybrid ball coming to rest past the Zeno time; bad scenes raise SceneError with the
@@ -22,6 +23,11 @@ from pathlib import Path
 import numpy as np
 
 import matep
+
+try:  # Debian's python3-ase, installed by tools/install-deps.sh
+    import ase.io as ase_io
+except ImportError:
+    ase_io = None
 
 G = 9.81
 WORK = Path("/tmp/matep_python_test")
@@ -91,6 +97,11 @@ class Edm(unittest.TestCase):
             self.assertEqual(x["pos"][0, 2], z)
             self.assertEqual(x["radius"][0], R)
             self.assertEqual(x["group"][0], "ball")
+            if ase_io:  # a reader other than matep's own
+                a = ase_io.read(path.with_suffix(".xyz"), format="extxyz")
+                np.testing.assert_array_equal(a.positions, v["position"])
+                np.testing.assert_array_equal(a.arrays["radius"], v["radius"])
+                self.assertEqual(list(a.arrays["group"]), ["ball"])
             d = matep.read_lammps_dump(path.with_suffix(".lammpstrj"))
             self.assertEqual(d["z"][0], z)
             self.assertEqual(d["timestep"], k)
@@ -109,6 +120,30 @@ class Edm(unittest.TestCase):
             self.assertEqual(len(frame), len(th["time"]))
         except ImportError:
             pass
+
+    @unittest.skipIf(ase_io is None, "python3-ase is not installed")
+    def test_ase_reads_the_xyz_and_lammps_snapshots_of_a_mixture(self):
+        """Two groups of two materials: ASE (not matep) reads the same positions, radii and groups."""
+        sc = matep.load(Path(os.environ.get("MATEP_SOURCE_DIR", ".")) / "cases/elastic_gas.toml")
+        sc["material"]["soft"] = dict(sc["material"]["hard"])
+        sc["particles"]["gas"].update(count=300, arrangement="random")
+        sc["particles"]["small"] = dict(sc["particles"]["gas"], material="soft", radius=0.3, count=200)
+        sc["run"]["end_time"] = 0.05
+        sc["output"].update({"events": False, "snapshot_interval": 0.05, "format": ["vtk", "xyz", "lammps"]})
+        run = matep.run(sc, out=WORK / "ase_mixture")
+        fs = run.final_state()
+        _, last = run.snapshots()[-1]
+        v = matep.read_vtp(last)
+        a = ase_io.read(last.with_suffix(".xyz"), format="extxyz")
+        np.testing.assert_array_equal(a.positions, v["position"])
+        np.testing.assert_array_equal(a.arrays["radius"], fs["radius"])
+        np.testing.assert_array_equal(a.arrays["group"], fs["group"])
+        np.testing.assert_array_equal(a.arrays["material"], fs["material"])
+        b = ase_io.read(last.with_suffix(".lammpstrj"), format="lammps-dump-text")
+        np.testing.assert_array_equal(b.positions, v["position"])
+        names = v["group_names"]
+        np.testing.assert_array_equal([names[t - 1] for t in b.numbers], fs["group"])  # type = group + 1
+        self.assertEqual(sorted(set(fs["group"])), ["gas", "small"])
 
     def test_pure_edm_collapses_at_the_zeno_time(self):
         e, z0, R = 0.8, 1.05, 0.05

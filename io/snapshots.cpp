@@ -28,6 +28,12 @@ std::string legend(const std::vector<std::string>& names) {
 }
 
 // The smallest unsigned VTK integer type that holds 0..n-1.
+// One number of a text format, after a space: 17 significant digits, or float(v) with 9.
+void put_number(CheckedFile& f, double v, bool single) {
+  if (single) f.print(" {:.9g}", static_cast<float>(v));
+  else f.print(" {:.17g}", v);
+}
+
 const char* index_type(std::size_t n) { return n <= 256 ? "UInt8" : n <= 65536 ? "UInt16" : "UInt32"; }
 
 // The arrays of one VTK piece, written either inline as ASCII or into the appended raw block (each
@@ -246,9 +252,7 @@ void SnapshotWriter<D>::write_xyz(const std::string& path, const Snapshot<D>& sn
   const std::size_t n = snap.x.size();
   const bool spins = spins_ && !snap.w.empty();
   double lo[3], hi[3];
-  to3<D>(lower_, lo);
-  to3<D>(upper_, hi);
-  if (D == 2) lo[2] = -0.5, hi[2] = 0.5;
+  box3(lo, hi);
   auto pbc = [&](int k) { return k < D && periodic_[static_cast<std::size_t>(k)] ? 'T' : 'F'; };
   f.print("{}\nLattice=\"{:.17g} 0 0 0 {:.17g} 0 0 0 {:.17g}\" Origin=\"{:.17g} {:.17g} {:.17g}\" pbc=\"{} {} {}\" "
           "Time={:.17g} Properties=species:S:1:pos:R:3:radius:R:1:velocity:R:3{}:id:I:1:group:S:1:material:S:1:"
@@ -258,11 +262,7 @@ void SnapshotWriter<D>::write_xyz(const std::string& path, const Snapshot<D>& sn
   std::vector<std::string> groups, materials;
   for (const auto& g : labels_.group_names) groups.push_back(token(g));
   for (const auto& m : labels_.materials) materials.push_back(token(m));
-  const bool single = formats_.single;
-  auto num = [&](double v) {
-    if (single) f.print(" {:.9g}", static_cast<float>(v));
-    else f.print(" {:.17g}", v);
-  };
+  auto num = [&](double v) { put_number(f, v, formats_.single); };
   double c[3];
   for (std::size_t i = 0; i < n; ++i) {
     f.puts("X");
@@ -291,20 +291,14 @@ void SnapshotWriter<D>::write_lammps(const std::string& path, const Snapshot<D>&
   const std::size_t n = snap.x.size();
   const bool spins = spins_ && !snap.w.empty();
   double lo[3], hi[3];
-  to3<D>(lower_, lo);
-  to3<D>(upper_, hi);
-  if (D == 2) lo[2] = -0.5, hi[2] = 0.5;
+  box3(lo, hi);
   auto bc = [&](int k) { return k < D && periodic_[static_cast<std::size_t>(k)] ? "pp" : "ff"; };
   f.print("ITEM: TIMESTEP\n{}\nITEM: TIME\n{:.17g}\nITEM: NUMBER OF ATOMS\n{}\nITEM: BOX BOUNDS {} {} {}\n"
           "{:.17g} {:.17g}\n{:.17g} {:.17g}\n{:.17g} {:.17g}\n"
           "ITEM: ATOMS id type x y z vx vy vz{} radius material mode\n",
           frame, snap.time, n, bc(0), bc(1), bc(2), lo[0], hi[0], lo[1], hi[1], lo[2], hi[2],
           spins ? " omegax omegay omegaz" : "");
-  const bool single = formats_.single;
-  auto num = [&](double v) {
-    if (single) f.print(" {:.9g}", static_cast<float>(v));
-    else f.print(" {:.17g}", v);
-  };
+  auto num = [&](double v) { put_number(f, v, formats_.single); };
   double c[3];
   for (std::size_t i = 0; i < n; ++i) {
     const std::uint32_t id = id_of(snap, i);

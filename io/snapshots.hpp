@@ -18,6 +18,7 @@
 
 #include "engine/observer.hpp"
 #include "engine/system.hpp"
+#include "io/vec3.hpp"
 
 namespace matep {
 
@@ -86,6 +87,12 @@ class SnapshotWriter final : public Observer<D> {
   void write_xyz(const std::string& path, const Snapshot<D>& snap) const;
   void write_lammps(const std::string& path, const Snapshot<D>& snap, std::size_t frame) const;
   std::string wall_file(std::size_t w, double t);  // writes it when needed; the relative path
+  // The domain box in three components (2D: z from -0.5 to 0.5, as LAMMPS takes a 2D box).
+  void box3(double* lo, double* hi) const {
+    to3<D>(lower_, lo);
+    to3<D>(upper_, hi);
+    if (D == 2) lo[2] = -0.5, hi[2] = 0.5;
+  }
   void write_pvd();
   std::uint32_t id_of(const Snapshot<D>& snap, std::size_t row) const {
     return snap.id.empty() ? static_cast<std::uint32_t>(row) : snap.id[row];

@@ -1,7 +1,6 @@
 """The Python module's suite (run by the test command through ctest): scenes built as dicts in
 Python, run with each method, every output read back (the XYZ and LAMMPS snapshots also by ASE)
-and the physics it shows checked against
-closed forms: a ball dropped on a floor (collision times, restitution, the Zeno time), a ball
+and the physics it shows checked against closed forms: a ball dropped on a floor (collision times, restitution, the Zeno time), a ball
 resting on a linear spring (overlap m g / k), grains falling out of an open face (the free-fall
 time), a hybrid ball coming to rest past the Zeno time; bad scenes raise SceneError with the
 CLI's message; Ctrl-C stops a run from Python with its outputs written.

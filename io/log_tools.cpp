@@ -412,7 +412,7 @@ FilterResult filter_log(const std::string& in, const std::string& out, const Log
     text = csv_header() + "\n";
   else
     enc.emplace(o.get(), out, h.dimension, h.particles, h.fixed_grains(), kEventLogBlockRecords,
-                reader.identity().group.empty() && h.version < kEventLogVersionIdentity ? nullptr : &reader.identity());
+                h.version >= kEventLogVersionIdentity ? &reader.identity() : nullptr);
 
   FilterResult res;
   EventRecord rec;

@@ -57,8 +57,8 @@ def render_frames(jobs: list[tuple[str, list[str], str, float]], color: str, siz
     array = ("POINTS", "velocity", "Magnitude") if color == "speed" else ("POINTS", color)
     pv.ColorBy(shown, array)
     lut = pv.GetColorTransferFunction("velocity" if color == "speed" else color)
-    if color in ("mode", "group", "material"):
-        lut.ApplyPreset("Rainbow Uniform", True) if hasattr(lut, "ApplyPreset") else None
+    if color in ("mode", "group", "material") and hasattr(lut, "ApplyPreset"):
+        lut.ApplyPreset("Rainbow Uniform", True)
     shown.SetScalarBarVisibility(view, True)
     bar = pv.GetScalarBar(lut, view)
     bar.Title = color

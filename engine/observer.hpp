@@ -80,6 +80,28 @@ struct ThermoSample {
   std::vector<double> wall_loads;
 };
 
+// One contact at a snapshot (Snapshot::contacts, written when an observer wants_contacts()).
+//   kind 1, a soft contact (TDM, the hybrid's soft set): its force at the snapshot time, from the
+//     state then (positions, full-step velocities and the contact's spring), the contact law
+//     evaluated without growing the spring (engine/soft/contact_rows.hpp);
+//   kind 0, hard collisions (EDM, the hybrid's hard grains): the impulses of the pair's (or the
+//     grain and wall's) collisions since the previous snapshot, divided by that interval: the mean
+//     force over it (engine/impulse_tally.hpp), and `collisions` the number of them.
+// The force is the one on grain i; a pair's other grain j receives its opposite. i < j for pairs;
+// j = -1 and wall = the wall's index for a wall contact (wall = -1 for a pair). fn is the normal
+// part (along the line of centres), ft the tangential part; point is the contact point (kind 0:
+// that of the last collision in the interval); overlap the contact's overlap (kind 0: zero).
+template <int D>
+struct ContactRow {
+  std::uint8_t kind = 1;
+  std::uint32_t collisions = 0;
+  std::uint32_t i = 0;
+  std::int64_t j = -1;
+  std::int32_t wall = -1;
+  double overlap = 0.0;
+  Vec<D> point = Vec<D>::Zero(), fn = Vec<D>::Zero(), ft = Vec<D>::Zero();
+};
+
 // The state of every particle at one time, in particle-id order (a snapshot). Once grains have
 // left through an outlet the rows are those present, in increasing id, and id gives each row's
 // particle id (empty: row k is particle k).
@@ -92,6 +114,8 @@ struct Snapshot {
   std::vector<double> radius;
   std::vector<std::uint8_t> mode;  // hybrid: 0 hard, 1 soft, 3 asleep; 4 fixed (any method; empty: none of these)
   std::vector<std::int32_t> cluster;  // hybrid: soft cluster id, -1 for hard (empty: none)
+  bool with_contacts = false;           // contacts were asked for (an observer wants_contacts())
+  std::vector<ContactRow<D>> contacts;  // then: the contacts at this time (ContactRow)
 };
 
 template <int D>
@@ -103,6 +127,8 @@ class Observer {
   virtual void on_sample(const ThermoSample&) {}
   virtual bool wants_snapshots() const { return false; }
   virtual void on_snapshot(const Snapshot<D>&) {}
+  // Whether the snapshots should carry the contacts (Snapshot::contacts).
+  virtual bool wants_contacts() const { return false; }
   virtual void on_outflow(const OutflowRecord<D>&) {}
   virtual void on_inflow(const InflowRecord<D>&) {}
   // Called every few thousand events with the simulated time and the events so far.

@@ -1181,7 +1181,7 @@ Scene build_scene(toml::table& root, const std::string& file, const fs::path& ba
   if (top.has("output")) {
     const TableReader out = top.sub("output");
     out.allow({"dir", "thermo_interval", "events", "snapshot_interval", "wall_loads", "max_bytes",
-               "checkpoint_interval", "format", "precision"});
+               "checkpoint_interval", "format", "precision", "contacts"});
     scene.output.dir = out.string_opt("dir").value_or(scene.output.dir);
     scene.output.thermo_interval = out.number_or("thermo_interval", 0.0, kNonNegative);
     scene.output.events = out.boolean_or("events", false);
@@ -1213,6 +1213,10 @@ Scene build_scene(toml::table& root, const std::string& file, const fs::path& ba
         out.fail("format", "\"vtk\" and \"vtk_ascii\" write the same files; name one of them", *f);
     }
     scene.output.formats.single = out.string_opt("precision", {"double", "single"}).value_or("double") == "single";
+    scene.output.formats.contacts = out.boolean_or("contacts", false);
+    if (scene.output.formats.contacts && scene.output.snapshot_interval == 0.0)
+      out.fail("contacts", "the contacts are written with the snapshots: set output.snapshot_interval too",
+               *out.find("contacts"));
   }
 
   if (!top.has("domain")) top.need("domain");

@@ -317,6 +317,30 @@ void SnapshotWriter<D>::write_lammps(const std::string& path, const Snapshot<D>&
   f.close();
 }
 
+// The contacts of one snapshot as CSV (engine/observer.hpp ContactRow): a comment line with the
+// time, a header, then one row per contact. 2D: two components per vector.
+template <int D>
+void SnapshotWriter<D>::write_contacts(const std::string& path, const Snapshot<D>& snap) const {
+  CheckedFile f(path, "w");
+  f.print("# time = {:.17g}\n", snap.time);
+  if constexpr (D == 3)
+    f.puts("kind,i,j,wall,x,y,z,fn_x,fn_y,fn_z,ft_x,ft_y,ft_z,overlap,collisions\n");
+  else
+    f.puts("kind,i,j,wall,x,y,fn_x,fn_y,ft_x,ft_y,overlap,collisions\n");
+  auto num = [&](double v) {
+    if (formats_.single) f.print(",{:.9g}", static_cast<float>(v));
+    else f.print(",{:.17g}", v);
+  };
+  for (const ContactRow<D>& r : snap.contacts) {
+    f.print("{},{},{},{}", r.kind, r.i, r.j, r.wall);
+    for (const Vec<D>* v : {&r.point, &r.fn, &r.ft})
+      for (int k = 0; k < D; ++k) num((*v)[k]);
+    num(r.overlap);
+    f.print(",{}\n", r.collisions);
+  }
+  f.close();
+}
+
 template <int D>
 void SnapshotWriter<D>::on_snapshot(const Snapshot<D>& snap) {
   const std::size_t k = written_.size();
@@ -328,6 +352,10 @@ void SnapshotWriter<D>::on_snapshot(const Snapshot<D>& snap) {
   if (formats_.vtk || formats_.vtk_ascii) write_vtk(add("vtp"), snap, formats_.vtk);
   if (formats_.xyz) write_xyz(add("xyz"), snap);
   if (formats_.lammps) write_lammps(add("lammpstrj"), snap, k);
+  if (formats_.contacts && snap.with_contacts) {
+    files.push_back(fmt::format("snapshots/contacts_{:06d}.csv", k));
+    write_contacts(dir_ + "/" + files.back(), snap);
+  }
   if (formats_.vtk || formats_.vtk_ascii)
     for (std::size_t w = 0; w < walls_.size(); ++w) files.push_back(wall_file(w, snap.time));
   written_.emplace_back(snap.time, std::move(files));

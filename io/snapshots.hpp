@@ -6,7 +6,8 @@
 //   xyz        DIR/snapshots/snap_NNNNNN.xyz, extended XYZ (OVITO, ASE)
 //   lammps     DIR/snapshots/snap_NNNNNN.lammpstrj, a LAMMPS "dump custom" frame (OVITO, ASE)
 // with output.precision = "double" (default: float64 arrays, 17 significant digits) or "single"
-// (float32, 9 digits). Every grain carries its id, group and material (indices into the legend in
+// (float32, 9 digits). With output.contacts, every snapshot also writes
+// DIR/snapshots/contacts_NNNNNN.csv: one row per contact (engine/observer.hpp ContactRow). Every grain carries its id, group and material (indices into the legend in
 // summary.json and in each file) and its mode.
 #pragma once
 
@@ -34,13 +35,16 @@ struct StateLabels {
 struct SnapshotFormats {
   bool vtk = true, vtk_ascii = false, xyz = false, lammps = false;
   bool single = false;  // output.precision = "single"
+  bool contacts = false;  // output.contacts: the contacts at each snapshot (contacts_NNNNNN.csv)
 };
 
 // Bytes a grain in one snapshot, for the output plan (io/run.cpp): generous upper bounds of the
 // measured sizes (bench/README.md, "Snapshots"), summed over the formats.
 inline double snapshot_bytes_per_grain(const SnapshotFormats& f) {
   const double vtk = f.single ? 70.0 : 120.0, text = f.single ? 180.0 : 280.0;
-  return (f.vtk ? vtk : 0.0) + (f.vtk_ascii ? text : 0.0) + (f.xyz ? text : 0.0) + (f.lammps ? text : 0.0);
+  // Contacts: up to about four rows a grain (half of a dense packing's coordination, and walls).
+  const double contacts = f.contacts ? 4.0 * (f.single ? 160.0 : 240.0) : 0.0;
+  return (f.vtk ? vtk : 0.0) + (f.vtk_ascii ? text : 0.0) + (f.xyz ? text : 0.0) + (f.lammps ? text : 0.0) + contacts;
 }
 
 // What a snapshot series held at a checkpoint: each snapshot's time and files, and each wall's
@@ -77,6 +81,7 @@ class SnapshotWriter final : public Observer<D> {
                  const std::array<bool, D>& periodic, bool spins = true);
   bool wants_snapshots() const override { return true; }
   void on_snapshot(const Snapshot<D>& snap) override;
+  bool wants_contacts() const override { return formats_.contacts; }
   // The series so far (a checkpoint's), and continuing one: the files it names are in place.
   using Mark = SnapshotSeriesMark;
   Mark mark() const;
@@ -86,6 +91,7 @@ class SnapshotWriter final : public Observer<D> {
   void write_vtk(const std::string& path, const Snapshot<D>& snap, bool binary);
   void write_xyz(const std::string& path, const Snapshot<D>& snap) const;
   void write_lammps(const std::string& path, const Snapshot<D>& snap, std::size_t frame) const;
+  void write_contacts(const std::string& path, const Snapshot<D>& snap) const;
   std::string wall_file(std::size_t w, double t);  // writes it when needed; the relative path
   // The domain box in three components (2D: z from -0.5 to 0.5, as LAMMPS takes a 2D box).
   void box3(double* lo, double* hi) const {

@@ -36,6 +36,7 @@
 #include "engine/edm.hpp"
 #include "engine/grid.hpp"
 #include "engine/huge_pages.hpp"
+#include "engine/impulse_tally.hpp"
 #include "engine/rough_rules.hpp"
 #include "engine/state_archive.hpp"
 #include "engine/wall_loads.hpp"
@@ -218,6 +219,7 @@ class EdmCore {
     for (auto* o : observers_)
       if (o->wants_snapshots()) snapshot_observers_.push_back(o);
     snapshots_ = set_.snapshot_interval > 0.0 && !snapshot_observers_.empty();
+    for (auto* o : snapshot_observers_) contacts_ = contacts_ || (snapshots_ && o->wants_contacts());
     if (set_.checkpoint && set_.checkpoint->resume) {
       // Continue a saved state: the samples and snapshots up to it are already written.
       StateReader r(*set_.checkpoint->resume);
@@ -387,6 +389,7 @@ class EdmCore {
     a(mass_in_);
     a.tag("edm.counters");
     a(wall_loads_);
+    a(impulses_);
     a(counts_);
     a(virial_);
     a(prev_ke_);
@@ -871,6 +874,7 @@ class EdmCore {
       rec.vj_before = b.v;
       fill_spins(rec, i, j, /*before=*/true);
     }
+    const Vec<D> vi_before = a.v;
     const double J = rough_ && rough_rules_.is_rough(cold_[i].mat, cold_[j].mat)
                          ? rough_pair(i, j, n, e)
                          : smooth_pair_collision(a.v, b.v, mass(i), mass(j), n, e);
@@ -880,6 +884,7 @@ class EdmCore {
     ++counts_.pair;
     note_collision(i);
     note_collision(j);
+    if (contacts_) impulses_.add(static_cast<std::uint32_t>(i), j, -1, a.x - a.R * n, mass(i) * (a.v - vi_before), n);
     if (log) {
       rec.mj = mass(j);
       rec.vj_after = b.v;
@@ -912,6 +917,7 @@ class EdmCore {
       rec.vi_before = a.v;
       fill_spins(rec, i, j, /*before=*/true);
     }
+    const Vec<D> vi_before = a.v;
     if (rough_ && rough_rules_.is_rough(cold_[i].mat, cold_[j].mat)) {
       const RoughResult<D> res = rough_wall_collision<D>(rough_body(i), n, e, rough_rules_.rule(cold_[i].mat, cold_[j].mat));
       a.v = res.v_i;
@@ -922,6 +928,7 @@ class EdmCore {
     ++cold_[i].counter;
     ++counts_.pair;
     note_collision(i);
+    if (contacts_) impulses_.add(static_cast<std::uint32_t>(i), j, -1, a.x - a.R * n, mass(i) * (a.v - vi_before), n);
     if (log) {
       rec.mj = kPlane;
       emit_collision(rec, EventKind::PairCollision, i, j, e, n);
@@ -967,7 +974,9 @@ class EdmCore {
     else
       smooth_moving_wall_collision(a.v, mass(i), normal, u, e);
     // The wall receives -m dv at the contact point (engine/wall_loads.hpp).
-    wall_loads_.add(static_cast<std::size_t>(w), anchors_[w], a.x - (a.R + c.gap) * normal, -mass(i) * (a.v - v_before));
+    const Vec<D> point = a.x - (a.R + c.gap) * normal;
+    wall_loads_.add(static_cast<std::size_t>(w), anchors_[w], point, -mass(i) * (a.v - v_before));
+    if (contacts_) impulses_.add(static_cast<std::uint32_t>(i), -1, w, point, mass(i) * (a.v - v_before), normal);
     ++cold_[i].counter;
     ++counts_.wall;
     note_collision(i);
@@ -1057,6 +1066,10 @@ class EdmCore {
       snap.radius[i] = h.R;
     }
     snap.w = sys_.w;
+    if (contacts_) {
+      snap.with_contacts = true;
+      impulses_.take(t - last_snapshot_time_, snap.contacts);
+    }
     derived().ext_snapshot(snap);
     if (n_fixed_ > 0 && snap.mode.empty()) {  // a pure run: 0 for a moving grain, 4 for a fixed one
       snap.mode.assign(N_, 0);
@@ -1164,6 +1177,8 @@ class EdmCore {
   std::vector<std::uint8_t> fixed_;
   std::vector<const WallShape<D>*> shapes_;  // sys_.walls[w].shape
   std::vector<Vec<D>> anchors_;               // their anchors (torque reference)
+  ImpulseTally<D> impulses_;  // the collisions' impulses since the last snapshot (contacts_)
+  bool contacts_ = false;     // snapshots carry the contacts (an observer wants_contacts())
   WallLoads<D> wall_loads_;                   // the grains' impulses on the walls since the last sample
   bool bracketed_walls_ = false;  // some wall's impact time is a bracketing search
   // Outlets (System::outlets): the regions whose entry is an event, with their index among the

@@ -16,6 +16,7 @@
 #include "engine/edm/core.hpp"
 #include "engine/hybrid/rest.hpp"
 #include "engine/hybrid/switching.hpp"
+#include "engine/soft/contact_rows.hpp"
 #include "engine/soft/forces.hpp"
 #include "engine/soft/pair_list.hpp"
 #include "engine/soft/springs.hpp"
@@ -176,6 +177,7 @@ class HybridEngine final : public edm::EdmCore<D, CalendarQueue, HybridEngine<D>
     snap.mode.resize(N_);
     for (int i = 0; i < N_; ++i) snap.mode[i] = mode_[i] == kPending ? std::uint8_t{kHard} : mode_[i];
     snap.cluster = soft_clusters();
+    if (snap.with_contacts) soft_contact_rows(snap.contacts);
   }
   void ext_sample(ThermoSample& s) {
     s.elastic_energy = soft_elastic_energy();
@@ -1190,6 +1192,31 @@ class HybridEngine final : public edm::EdmCore<D, CalendarQueue, HybridEngine<D>
   }
 
   // Elastic energy stored in the soft contacts (engine/tdm/tdm.cpp sample()).
+  // The soft set's touching contacts (Snapshot::contacts, kind 1; engine/soft/contact_rows.hpp), each
+  // at its grains' last substep: pairs (sleepers' included), then walls.
+  void soft_contact_rows(std::vector<ContactRow<D>>& rows) const {
+    auto body = [&](int i) {
+      const Spin<D> w = sys_.w.empty() ? Spin<D>(Spin<D>::Zero()) : sys_.w[i];
+      return soft::RowBody<D>{static_cast<std::uint32_t>(i), hot_[i].x, hot_[i].R, hot_[i].v, w};
+    };
+    auto pair = [&](const PairEntry& e) {
+      if (!e.touch) return;
+      const int i = static_cast<int>(e.i), j = static_cast<int>(e.j);
+      Vec<D> dx = hot_[i].x - hot_[j].x;
+      min_image(dx);
+      if (dx.squaredNorm() >= (hot_[i].R + hot_[j].R) * (hot_[i].R + hot_[j].R)) return;
+      rows.push_back(soft::pair_row<D>(ctab_[e.c], body(i), body(j), dx, e.xi));
+    };
+    pairs_.for_each(pair);
+    for (const auto& e : pe_sleep_) pair(e);
+    for (const auto* list : {&we_, &we_sleep_})
+      for (const auto& e : *list) {
+        if (!e.touch) continue;
+        const WallPoint<D> p = shapes_[e.w]->at_feature(hot_[e.i].x, hot_[e.i].R, hot_[e.i].t, e.f);
+        if (p.gap < 0.0) rows.push_back(soft::wall_row<D>(ctab_[e.c], body(e.i), e.w, p, e.xi));
+      }
+  }
+
   double soft_elastic_energy() const {
     double el = 0.0;
     auto stored = [](const SoftContact& c, double delta, const Vec<D>& xi) { return stored_energy<D>(c, delta, xi); };

@@ -11,6 +11,7 @@
 
 #include "contact/soft.hpp"
 #include "engine/grid.hpp"
+#include "engine/soft/contact_rows.hpp"
 #include "engine/soft/forces.hpp"
 #include "engine/soft/springs.hpp"
 #include "engine/soft/verlet.hpp"
@@ -72,6 +73,7 @@ class TdmEngine {
   // ---- diagnostics ----
   ThermoSample sample(double time);
   Snapshot<D> snapshot(double time) const;
+  void add_contacts(Snapshot<D>& s, double time) const;  // Snapshot::contacts (engine/soft/contact_rows.hpp)
   // A fixed grain (System::fixed) is never integrated: zero velocity and spin, its position kept.
   bool is_fixed(std::size_t i) const { return n_fixed_ > 0 && fixed_[i] != 0; }
   Vec<D> v_full(std::size_t i) const {
@@ -988,6 +990,37 @@ Snapshot<D> TdmEngine<D>::snapshot(double time) const {
   return s;
 }
 
+// Every touching contact of the lists at time t (after the step's forces): pairs, then walls.
+template <int D>
+void TdmEngine<D>::add_contacts(Snapshot<D>& s, double time) const {
+  s.with_contacts = true;
+  auto gone = [&](std::size_t i) { return !removed_id_.empty() && removed_id_[id_[i]] != 0; };
+  auto body = [&](std::size_t i) {
+    return soft::RowBody<D>{id_[i], x_[i], R_[i], v_full(i), w_full(i)};
+  };
+  const Vec<D> zero = Vec<D>::Zero();
+  for (std::size_t i = 0; i < n_built_ && i < N_; ++i) {
+    if (gone(i)) continue;
+    for (std::uint32_t e = off_[i]; e < off_[i + 1]; ++e) {
+      if (!touch_[e]) continue;
+      const std::uint32_t j = nb_[e];
+      if (gone(j)) continue;
+      const Vec<D> dx = x_[i] - x_[j] + shifts_[sh_[e]];
+      if (dx.squaredNorm() >= (R_[i] + R_[j]) * (R_[i] + R_[j])) continue;
+      s.contacts.push_back(soft::pair_row<D>(pair_coeffs(i, j), body(i), body(j), dx, rot_ ? xi_[e] : zero));
+    }
+  }
+  for (std::size_t e = 0; e < wl_i_.size(); ++e) {
+    if (!wl_touch_[e]) continue;
+    const std::uint32_t i = wl_i_[e];
+    if (gone(i)) continue;
+    const int w = static_cast<int>(wl_w_[e]);
+    const WallPoint<D> p = shapes_[w]->at_feature(x_[i], R_[i], time, wl_f_[e]);
+    if (!(p.gap < 0.0)) continue;
+    s.contacts.push_back(soft::wall_row<D>(wall_coeffs(w, i), body(i), w, p, rot_ ? wl_xi_[e] : zero));
+  }
+}
+
 template <int D>
 RunResult<D> TdmEngine<D>::run() {
   const auto t0 = Clock::now();
@@ -999,8 +1032,9 @@ RunResult<D> TdmEngine<D>::run() {
   auto step_of = [&](double interval, std::uint64_t k) {
     return static_cast<std::uint64_t>(std::llround(static_cast<double>(k) * interval / dt_));
   };
-  bool want_snap = false;
+  bool want_snap = false, want_contacts = false;
   for (auto* o : obs_) want_snap = want_snap || o->wants_snapshots();
+  for (auto* o : obs_) want_contacts = want_contacts || (o->wants_snapshots() && o->wants_contacts());
   want_snap = want_snap && set_.snapshot_interval > 0.0;
   std::uint64_t& k_sample = k_sample_;
   std::uint64_t& k_snap = k_snap_;
@@ -1042,7 +1076,8 @@ RunResult<D> TdmEngine<D>::run() {
         ++k_snap;
       }
       if (do_snap) {
-        const Snapshot<D> s = snapshot(t);
+        Snapshot<D> s = snapshot(t);
+        if (want_contacts) add_contacts(s, t);
         for (auto* o : obs_)
           if (o->wants_snapshots()) o->on_snapshot(s);
       }

@@ -1,7 +1,7 @@
 """The Python module's suite (run by the test command through ctest): scenes built as dicts in
 Python, run with each method, every output read back (the XYZ and LAMMPS snapshots also by ASE)
 and the physics it shows checked against closed forms: a ball dropped on a floor (collision times, restitution, the Zeno time), a ball
-resting on a linear spring (overlap m g / k), grains falling out of an open face (the free-fall
+resting on a linear spring (overlap m g / k, its contact force m g), grains falling out of an open face (the free-fall
 time), a hybrid ball coming to rest past the Zeno time; bad scenes raise SceneError with the
 CLI's message; Ctrl-C stops a run from Python with its outputs written.
 
@@ -60,7 +60,8 @@ class Edm(unittest.TestCase):
     def test_bouncing_ball_every_output_against_the_closed_form(self):
         e, z0, R = 0.8, 1.05, 0.05
         sc = ball_scene("edm", 3.0, e, z0, R)
-        sc["output"].update({"events": True, "snapshot_interval": 0.25, "format": ["vtk", "xyz", "lammps"]})
+        sc["output"].update({"events": True, "snapshot_interval": 0.25, "format": ["vtk", "xyz", "lammps"],
+                             "contacts": True})
         info = matep.check(sc)
         self.assertEqual(info["method"], "edm")
         self.assertIn("particles    1", info["description"])
@@ -105,6 +106,18 @@ class Edm(unittest.TestCase):
             self.assertEqual(d["z"][0], z)
             self.assertEqual(d["timestep"], k)
             self.assertAlmostEqual(d["time"], t, places=12)
+        # Contacts: each interval's floor impulse (mean force times 0.25 s) changes the momentum by
+        # m (v_b - v_a) + m g dt; the impacts counted are those of the closed form.
+        for k in range(1, len(snaps)):
+            c = run.contacts(k)
+            ta, tb = snaps[k - 1][0], snaps[k][0]
+            dp = m * (ball_velocity(tb, z0, R, e) - ball_velocity(ta, z0, R, e)) + m * G * (tb - ta)
+            impacts = sum(1 for t in t_exact if ta < t <= tb)
+            if impacts == 0:
+                self.assertEqual(len(c["i"]), 0)
+                continue
+            self.assertEqual((list(c["kind"]), list(c["wall"]), list(c["collisions"])), ([0], [0], [impacts]))
+            self.assertAlmostEqual(c["fn_z"][0] * (tb - ta), dp, delta=1e-9 * abs(dp))
         # final_state.csv and the checkpoint written at the end.
         fs = run.final_state()
         self.assertAlmostEqual(fs["z"][0], ball_height(3.0, z0, R, e), delta=1e-9)
@@ -190,12 +203,26 @@ def ball_height(t: float, z0: float, R: float, e: float) -> float:
         k += 1
 
 
+def ball_velocity(t: float, z0: float, R: float, e: float) -> float:
+    """The ball's vertical velocity at time t (closed form, before the Zeno time)."""
+    v = math.sqrt(2 * G * (z0 - R))
+    tk, k = v / G, 0
+    if t <= tk:
+        return -G * t
+    while True:
+        vk = (e ** (k + 1)) * v
+        if t <= tk + 2 * vk / G:
+            return vk - G * (t - tk)
+        tk += 2 * vk / G
+        k += 1
+
+
 class Tdm(unittest.TestCase):
     def test_a_ball_rests_on_a_linear_spring_at_overlap_mg_over_k(self):
         k_n, R = 2.0e5, 0.05
         sc = ball_scene("tdm", 2.0, e=0.3, z0=0.1, R=R)
         sc["material"]["steel"].update({"contact": "linear", "stiffness": k_n})
-        sc["output"].update({"snapshot_interval": 1.0})
+        sc["output"].update({"snapshot_interval": 1.0, "contacts": True})
         run = matep.run(sc, out=WORK / "tdm_ball")
         self.assertEqual(run.outcome["status"], "ok")
         m = 7800.0 * 4.0 / 3.0 * math.pi * R ** 3
@@ -204,6 +231,14 @@ class Tdm(unittest.TestCase):
         self.assertLess(abs(fs["vz"][0]), 1e-6)
         v = run.snapshot(-1)
         self.assertEqual(int(v["mode"][0]), 1)  # soft
+        c = run.contacts(-1)  # the floor's contact carries the weight at the overlap m g / k
+        self.assertAlmostEqual(c["time"], 2.0, places=12)
+        self.assertEqual(list(c["wall"]), [0])
+        self.assertEqual(list(c["j"]), [-1])
+        self.assertEqual(int(c["kind"][0]), 1)
+        self.assertAlmostEqual(c["fn_z"][0], m * G, delta=1e-6 * m * G)
+        self.assertAlmostEqual(c["overlap"][0], m * G / k_n, delta=1e-6 * R)
+        self.assertAlmostEqual(c["z"][0], 0.0, delta=1e-9)
         self.assertEqual(run.summary["method"], "tdm")
         self.assertGreater(run.summary["soft"]["steps"], 1000)
         self.assertEqual(run.checkpoint()["method"], "tdm")

@@ -61,14 +61,16 @@ struct Case {
   const char* sets;
 };
 
-// Each method, with every output a run can write: stopped by SIGINT at a random moment, resumed.
+// Each method, with every output a run can write (the contacts' impulse tally of the hard grains
+// included): stopped by SIGINT at a random moment, resumed.
 TEST(CheckpointCli, ResumedAfterASignalEachMethodWritesTheSameFiles) {
   const Case cases[] = {
       {"elastic_gas.toml", "--set run.end_time=40 --set output.thermo_interval=0.1 --set output.events=true "
-                           "--set output.snapshot_interval=10"},
-      {"heap.toml", "--set run.end_time=1.2 --set output.thermo_interval=0.01 --set output.snapshot_interval=0.4"},
+                           "--set output.snapshot_interval=10 --set output.contacts=true"},
+      {"heap.toml", "--set run.end_time=1.2 --set output.thermo_interval=0.01 --set output.snapshot_interval=0.4 "
+                    "--set output.contacts=true"},
       {"pour_settle.toml", "--set run.end_time=0.8 --set particles.beads.count=600 --set output.thermo_interval=0.01 "
-                           "--set output.events=true --set output.snapshot_interval=0.2"},
+                           "--set output.events=true --set output.snapshot_interval=0.2 --set output.contacts=true"},
   };
   std::mt19937_64 rng(std::random_device{}());
   for (const Case& c : cases) {

@@ -2,6 +2,7 @@
 // frames of one run hold the same grains as final_state.csv (the last snapshot is the final
 // state), with each grain's id, group, material and mode; float32 keeps float(x); bad
 // output.format / output.precision values are refused naming the key.
+#include <fmt/format.h>
 #include <gtest/gtest.h>
 
 #include <cmath>
@@ -170,6 +171,9 @@ TEST(Snapshots, BadFormatOrPrecisionIsRefusedNamingTheKey) {
       {"'output.format=[]'", "output.format: names no format"},
       {"output.format=3", "output.format: must be"},
       {"output.precision=half", "output.precision: must be one of \"double\", \"single\" (got \"half\")"},
+      {"output.contacts=1", "output.contacts: expected a boolean but found an integer (got 1)"},
+      {"output.contacts=true", "output.contacts: the contacts are written with the snapshots: set "
+                               "output.snapshot_interval too"},
   };
   for (const auto& c : cases) {
     const auto r = run_cli(base + "--set " + c.set);
@@ -177,4 +181,88 @@ TEST(Snapshots, BadFormatOrPrecisionIsRefusedNamingTheKey) {
     EXPECT_NE(r.out.find(c.says), std::string::npos) << c.set << "\n" << r.out;
   }
   fs::remove_all(d);
+}
+
+namespace {
+
+// A contacts_NNNNNN.csv: its time line, header and rows of numbers.
+struct ContactsFile {
+  double time = -1.0;
+  std::vector<std::string> header;
+  std::vector<std::vector<double>> rows;
+};
+
+ContactsFile read_contacts(const fs::path& path) {
+  ContactsFile c;
+  std::istringstream in(slurp(path));
+  std::string line;
+  std::getline(in, line);
+  EXPECT_EQ(line.rfind("# time = ", 0), 0u) << line;
+  c.time = std::stod(line.substr(9));
+  std::getline(in, line);
+  std::stringstream hs(line);
+  for (std::string x; std::getline(hs, x, ',');) c.header.push_back(x);
+  while (std::getline(in, line)) {
+    std::vector<double> r;
+    std::stringstream ls(line);
+    for (std::string x; std::getline(ls, x, ',');) r.push_back(std::stod(x));
+    EXPECT_EQ(r.size(), c.header.size()) << line;
+    c.rows.push_back(r);
+  }
+  return c;
+}
+
+}  // namespace
+
+// output.contacts: one CSV per snapshot. A 2D TDM heap (a fixed plate, an inlet, walls) in single
+// precision: soft rows (kind 1) between grains present at that time, pairs with i < j, walls with
+// j = -1; a 3D EDM gas: hard rows (kind 0) with the number of collisions. The physics of the rows
+// is checked in tests/analytic/test_contact_output.cpp.
+TEST(Snapshots, ContactsAreWrittenWithEverySnapshot) {
+  const fs::path d = fresh_dir("snap_contacts");
+  auto r = run_cli("run " + kCasesDir + "heap.toml --set run.end_time=0.5 --set output.snapshot_interval=0.25 "
+                   "--set output.contacts=true --set output.precision=single --out " + d.string());
+  ASSERT_EQ(r.code, 0) << r.out;
+  for (int k = 0; k < 3; ++k)
+    EXPECT_TRUE(fs::exists(d / fmt::format("snapshots/contacts_{:06d}.csv", k))) << k;
+  const ContactsFile c = read_contacts(d / "snapshots/contacts_000002.csv");
+  EXPECT_DOUBLE_EQ(c.time, 0.5);
+  const std::vector<std::string> h2{"kind", "i", "j", "wall", "x", "y", "fn_x", "fn_y", "ft_x", "ft_y", "overlap",
+                                    "collisions"};
+  EXPECT_EQ(c.header, h2);
+  const auto rows = final_rows(d / "final_state.csv");
+  ASSERT_GT(c.rows.size(), 50u);  // the plate's neighbours touch, and the landed grains
+  int walls = 0;
+  for (const auto& row : c.rows) {
+    EXPECT_EQ(row[0], 1.0);
+    EXPECT_TRUE(rows.count(static_cast<long>(row[1]))) << row[1];
+    if (row[3] >= 0.0) {
+      ++walls;
+      EXPECT_EQ(row[2], -1.0);
+    } else {
+      EXPECT_LT(row[1], row[2]);
+      EXPECT_TRUE(rows.count(static_cast<long>(row[2]))) << row[2];
+    }
+    EXPECT_GT(row[10], 0.0);  // overlap
+    EXPECT_EQ(row[11], 0.0);
+    EXPECT_EQ(std::stod(fmt::format("{:.9g}", static_cast<float>(row[4]))), row[4]);  // float32 digits
+  }
+  (void)walls;
+
+  const fs::path e = fresh_dir("snap_contacts_edm");
+  r = run_cli("run " + kCasesDir + "elastic_gas.toml --set run.end_time=0.2 --set output.snapshot_interval=0.1 "
+              "--set output.contacts=true --set output.events=false --out " + e.string());
+  ASSERT_EQ(r.code, 0) << r.out;
+  EXPECT_EQ(read_contacts(e / "snapshots/contacts_000000.csv").rows.size(), 0u);  // t = 0: no interval yet
+  const ContactsFile g = read_contacts(e / "snapshots/contacts_000002.csv");
+  EXPECT_EQ(g.header.size(), 15u);
+  EXPECT_EQ(g.header[6], "z");
+  ASSERT_GT(g.rows.size(), 100u);
+  for (const auto& row : g.rows) {
+    EXPECT_EQ(row[0], 0.0);
+    EXPECT_GE(row[14], 1.0);  // collisions in the interval
+    EXPECT_EQ(row[13], 0.0);  // no overlap
+  }
+  fs::remove_all(d);
+  fs::remove_all(e);
 }

@@ -19,7 +19,7 @@ import os
 from pathlib import Path
 
 from . import outputs
-from .outputs import (read_csv, read_events, read_frame, read_lammps_dump, read_pvd, read_summary, read_vtp,
+from .outputs import (read_contacts, read_csv, read_events, read_frame, read_lammps_dump, read_pvd, read_summary, read_vtp,
                       read_xyz, snapshots)
 
 try:
@@ -30,7 +30,7 @@ except ImportError as e:  # the pure-Python readers work without it
 
 __all__ = ["load", "dumps", "check", "run", "Run", "SceneError", "FileError", "read_checkpoint", "outputs",
            "read_csv", "read_frame", "read_vtp", "read_pvd", "read_xyz", "read_lammps_dump", "read_events",
-           "read_summary", "snapshots"]
+           "read_summary", "read_contacts", "snapshots"]
 
 SceneError = _native.SceneError if _native else ValueError
 FileError = _native.FileError if _native else OSError
@@ -141,6 +141,13 @@ class Run:
 
     def snapshot(self, k: int = -1) -> dict:
         return read_vtp(self.snapshots()[k][1])
+
+    def contacts(self, k: int = -1) -> dict:
+        """The contacts of snapshot k (output.contacts = true): read_contacts of its CSV."""
+        files = sorted((self.dir / "snapshots").glob("contacts_*.csv"))
+        if not files:
+            raise FileNotFoundError(f"{self.dir}: no contacts files (set output.contacts = true)")
+        return read_contacts(files[k])
 
     def checkpoint(self) -> dict:
         return read_checkpoint(self.dir / "checkpoint.bin")

@@ -178,6 +178,25 @@ def read_csv(path) -> dict:
     return out
 
 
+def read_contacts(path) -> dict:
+    """A snapshot's contacts (snapshots/contacts_NNNNNN.csv, output.contacts) as {column: numpy
+    array} plus "time"; integer columns (kind, i, j, wall, collisions) as int64. kind 1: a soft
+    contact's force at that time; kind 0: hard collisions' mean force since the previous snapshot."""
+    with open(path) as f:
+        first = f.readline()
+        if not first.startswith("# time = "):
+            raise ValueError(f"{path}: not a matep contacts file (no '# time = ' line)")
+        names = f.readline().strip().split(",")
+        data = np.loadtxt(f, delimiter=",", ndmin=2)
+    if data.size == 0:
+        data = np.zeros((0, len(names)))
+    out = {"time": float(first[len("# time = "):])}
+    for c, name in enumerate(names):
+        col = data[:, c]
+        out[name] = col.astype(np.int64) if name in ("kind", "i", "j", "wall", "collisions") else col
+    return out
+
+
 def read_frame(path):
     """read_csv as a pandas DataFrame (pandas is optional: python3-pandas)."""
     import pandas as pd

@@ -14,6 +14,7 @@
 #include "contact/soft.hpp"
 #include "contact/timestep.hpp"
 #include "engine/edm/core.hpp"
+#include "engine/flatten.hpp"
 #include "engine/hybrid/rest.hpp"
 #include "engine/hybrid/switching.hpp"
 #include "engine/soft/contact_rows.hpp"
@@ -661,7 +662,7 @@ class HybridEngine final : public edm::EdmCore<D, CalendarQueue, HybridEngine<D>
   // (wall) within the list skin with an awake soft end. The touching pairs of two sleepers (walls
   // of a sleeper) stay in pe_sleep_/we_sleep_ (rest rule: freeze_quiet, wake_loaded). Sleepers
   // with an awake neighbour are watched.
-  [[gnu::flatten]] void rebuild_entries(double t) {
+  MATEP_FLATTEN void rebuild_entries(double t) {
     ++hstats_.rebuilds;
     build_t_ = t;
     soft::SpringMemory<D>& mem = springs_;
@@ -1161,7 +1162,7 @@ class HybridEngine final : public edm::EdmCore<D, CalendarQueue, HybridEngine<D>
     any_periodic_ ? soft_forces_law<Law, Rot, Roll, true>() : soft_forces_law<Law, Rot, Roll, false>();
   }
   template <NormalLaw Law, bool Rot, bool Roll, bool Periodic>
-  [[gnu::flatten]] void soft_forces_law() {
+  MATEP_FLATTEN void soft_forces_law() {
     const double h = h_;
     const bool onset_ok = wall_t_ > 0.0;
     SoftPolicy<Rot, Periodic> pol{ctab_.data(), pairs_.c.data(), touching_.data(), near_.data(), mode_.data(),

@@ -10,6 +10,7 @@
 #include <stdexcept>
 
 #include "contact/soft.hpp"
+#include "engine/flatten.hpp"
 #include "engine/grid.hpp"
 #include "engine/soft/contact_rows.hpp"
 #include "engine/soft/forces.hpp"
@@ -793,7 +794,7 @@ struct TdmEngine<D>::RangePolicy {
 // contacts begun.
 template <int D>
 template <bool Rot, bool Uniform, NormalLaw Law, bool Fuse, bool Roll>
-[[gnu::flatten]] void TdmEngine<D>::pair_range(int t) {
+MATEP_FLATTEN void TdmEngine<D>::pair_range(int t) {
   RangePolicy<Rot, Uniform, Law, Fuse, Roll> pol(*this, t);
   const auto rows = soft::PairRows<D>::of(nullptr, off_.data(), nb_.data(), sh_.data(), touch_.data(), xi_.data(),
                                           shifts_.data(), epsd_ ? mr_.data() : nullptr);

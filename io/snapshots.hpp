@@ -7,8 +7,9 @@
 //   lammps     DIR/snapshots/snap_NNNNNN.lammpstrj, a LAMMPS "dump custom" frame (OVITO, ASE)
 // with output.precision = "double" (default: float64 arrays, 17 significant digits) or "single"
 // (float32, 9 digits). With output.contacts, every snapshot also writes
-// DIR/snapshots/contacts_NNNNNN.csv: one row per contact (engine/observer.hpp ContactRow). Every grain carries its id, group and material (indices into the legend in
-// summary.json and in each file) and its mode.
+// DIR/snapshots/contacts_NNNNNN.csv: one row per contact (engine/observer.hpp ContactRow). Every
+// grain carries its id, group and material (indices into the legend in summary.json and in each
+// file) and its mode.
 #pragma once
 
 #include <array>

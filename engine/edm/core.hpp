@@ -203,6 +203,7 @@ class EdmCore {
 
   // Whether i is a fixed grain (System::fixed): never predicted, never moved.
   bool is_fixed(int i) const { return n_fixed_ > 0 && fixed_[i] != 0; }
+  static std::uint32_t ui(int i) { return static_cast<std::uint32_t>(i); }  // a particle index as an id
   // Whether i is absent: it has left through an outlet, or an inlet has not inserted it yet.
   bool is_removed(int i) const { return absent_ && removed_[i] != 0; }
   // Whether i flies between its events (its stored state may be extrapolated in time).
@@ -884,7 +885,7 @@ class EdmCore {
     ++counts_.pair;
     note_collision(i);
     note_collision(j);
-    if (contacts_) impulses_.add(static_cast<std::uint32_t>(i), j, -1, a.x - a.R * n, mass(i) * (a.v - vi_before), n);
+    if (contacts_) impulses_.add(ui(i), j, -1, a.x - a.R * n, mass(i) * (a.v - vi_before), n);
     if (log) {
       rec.mj = mass(j);
       rec.vj_after = b.v;
@@ -928,7 +929,7 @@ class EdmCore {
     ++cold_[i].counter;
     ++counts_.pair;
     note_collision(i);
-    if (contacts_) impulses_.add(static_cast<std::uint32_t>(i), j, -1, a.x - a.R * n, mass(i) * (a.v - vi_before), n);
+    if (contacts_) impulses_.add(ui(i), j, -1, a.x - a.R * n, mass(i) * (a.v - vi_before), n);
     if (log) {
       rec.mj = kPlane;
       emit_collision(rec, EventKind::PairCollision, i, j, e, n);
@@ -976,7 +977,7 @@ class EdmCore {
     // The wall receives -m dv at the contact point (engine/wall_loads.hpp).
     const Vec<D> point = a.x - (a.R + c.gap) * normal;
     wall_loads_.add(static_cast<std::size_t>(w), anchors_[w], point, -mass(i) * (a.v - v_before));
-    if (contacts_) impulses_.add(static_cast<std::uint32_t>(i), -1, w, point, mass(i) * (a.v - v_before), normal);
+    if (contacts_) impulses_.add(ui(i), -1, w, point, mass(i) * (a.v - v_before), normal);
     ++cold_[i].counter;
     ++counts_.wall;
     note_collision(i);

@@ -105,6 +105,7 @@ class HybridEngine final : public edm::EdmCore<D, CalendarQueue, HybridEngine<D>
   using Base::rough_rules_;
   using Base::mass;
   using Base::is_fixed;
+  using Base::ui;
   using Base::advance;
   using Base::predict;
   using Base::for_neighbours;
@@ -646,7 +647,6 @@ class HybridEngine final : public edm::EdmCore<D, CalendarQueue, HybridEngine<D>
     return static_cast<std::uint32_t>(ctab_.size() - 1);
   }
 
-  static std::uint32_t ui(int i) { return static_cast<std::uint32_t>(i); }
   static std::uint64_t key(std::uint32_t a, std::uint32_t b) { return (std::uint64_t(a) << 32) | b; }
   // A pair's key whatever its orientation.
   static std::uint64_t pkey(std::uint32_t a, std::uint32_t b) { return a < b ? key(a, b) : key(b, a); }

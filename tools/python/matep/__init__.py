@@ -19,8 +19,8 @@ import os
 from pathlib import Path
 
 from . import outputs
-from .outputs import (read_contacts, read_csv, read_events, read_frame, read_lammps_dump, read_pvd, read_summary, read_vtp,
-                      read_xyz, snapshots)
+from .outputs import (read_contacts, read_csv, read_events, read_frame, read_lammps_dump, read_pvd, read_summary,
+                      read_vtp, read_xyz, snapshots)
 
 try:
     from . import _native

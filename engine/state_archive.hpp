@@ -120,6 +120,14 @@ class StateReader {
     using namespace archive_detail;
     if constexpr (HasArchive<T, StateReader>) {
       v.archive(*this);
+    } else if constexpr (std::is_same_v<T, bool>) {
+      // A flag is one byte, 0 or 1: any other value is a corrupt state (and not a bool to load).
+      std::uint8_t b = 0;
+      raw(&b, 1, last_);
+      static_assert(sizeof(bool) == 1, "the writer saves a flag as its one byte");
+      if (b > 1)
+        throw StateError(fmt::format("the engine state has a flag of value {} in \"{}\" (0 or 1 expected)", b, last_));
+      v = b != 0;
     } else if constexpr (Plain<T, StateReader>) {
       raw(&v, sizeof v, last_);
     } else if constexpr (is_vector<T>::value) {

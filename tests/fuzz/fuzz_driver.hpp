@@ -4,7 +4,8 @@
 // function of (seed, i), so any input can be rebuilt from its number.
 //
 // The target runs in a forked worker under an address-space limit (at most 1 GiB above what the
-// process holds; not under the sanitizers, which reserve far more) and a 2 s alarm per input. A worker
+// process holds; not under the sanitizers, which reserve far more) and an alarm per input (2 s; the
+// sanitizer builds give more, their code being several times slower). A worker
 // that dies (a crash, the alarm, an exception the target must not throw) is reported with its
 // input, which is written to a file for the corpus, and a fresh worker continues after it.
 #pragma once
@@ -146,7 +147,7 @@ inline std::string make_input(const std::vector<std::string>& corpus, std::uint6
 
 struct Failure {
   std::uint64_t index = 0;
-  std::string why;    // "signal 11", "timeout (> 2 s)", "exception: ..."
+  std::string why;    // "signal 11", "timeout (> 2 s)", "exception: ...", "exit status N" (a sanitizer's report)
   std::string input;
 };
 
@@ -180,7 +181,7 @@ inline std::uint64_t address_space_now() {
 // memory_bytes more address space than the process holds.
 inline Report run(const std::vector<std::string>& corpus, std::uint64_t seed, std::uint64_t max_execs,
                   double max_seconds, const Target& target, bool limit_memory,
-                  std::uint64_t memory_bytes = std::uint64_t{1} << 30) {
+                  std::uint64_t memory_bytes = std::uint64_t{1} << 30, unsigned alarm_seconds = 2) {
   Report rep;
   auto* sh = static_cast<detail::Shared*>(
       ::mmap(nullptr, sizeof(detail::Shared), PROT_READ | PROT_WRITE, MAP_SHARED | MAP_ANONYMOUS, -1, 0));
@@ -202,7 +203,7 @@ inline Report run(const std::vector<std::string>& corpus, std::uint64_t seed, st
         if ((i & 63) == 0 && elapsed() >= max_seconds) break;
         sh->current = i;
         const std::string input = make_input(corpus, seed, i);
-        ::alarm(2);
+        ::alarm(alarm_seconds);
         try {
           target(input);
         } catch (const std::exception& e) {
@@ -226,7 +227,8 @@ inline Report run(const std::vector<std::string>& corpus, std::uint64_t seed, st
     Failure f;
     f.index = sh->current;
     if (WIFSIGNALED(status))
-      f.why = WTERMSIG(status) == SIGALRM ? "timeout (> 2 s)" : "signal " + std::to_string(WTERMSIG(status));
+      f.why = WTERMSIG(status) == SIGALRM ? "timeout (> " + std::to_string(alarm_seconds) + " s)"
+                                          : "signal " + std::to_string(WTERMSIG(status));
     else
       f.why = sh->why[0] ? std::string(sh->why) : "exit status " + std::to_string(WEXITSTATUS(status));
     f.input = make_input(corpus, seed, f.index);

@@ -10,6 +10,7 @@
 
 #include "engine/edm.hpp"
 #include "engine/hybrid.hpp"
+#include "engine/state_archive.hpp"
 #include "engine/tdm.hpp"
 #include "io/run.hpp"
 #include "io/scene.hpp"
@@ -317,3 +318,27 @@ TEST(CheckpointEngines, EdmCasesResumeBitForBit) {
 
 }  // namespace
 }  // namespace matep
+
+// A flag of a saved state is one byte, 0 or 1; a corrupt byte is refused (found by the checkpoint
+// fuzzer under UBSan: loading it into a bool was undefined behaviour).
+TEST(CheckpointEngines, ACorruptFlagIsRefusedNotLoaded) {
+  matep::StateWriter w;
+  w.tag("part");
+  bool on = true;
+  w(on);
+  std::vector<std::uint8_t> bytes = w.bytes;
+  bool back = false;
+  matep::StateReader good(bytes);
+  good.tag("part");
+  good(back);
+  EXPECT_TRUE(back);
+  bytes.back() = 7;
+  matep::StateReader bad(bytes);
+  bad.tag("part");
+  try {
+    bad(back);
+    FAIL() << "a flag byte of 7 was loaded";
+  } catch (const matep::StateError& e) {
+    EXPECT_NE(std::string(e.what()).find("flag of value 7 in \"part\""), std::string::npos) << e.what();
+  }
+}

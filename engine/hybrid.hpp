@@ -33,6 +33,9 @@ struct HybridSettings {
   double dt = 0.0;          // TDM substep; 0 = the soft plan's default step
   double stability = 2.0;   // k: a collision within k t_c of the previous one turns the cluster soft
   int repeats = 3;          // ... when it is the repeats-th such collision in a row
+  double lookahead = 20.0;  // L: a strongly inelastic collision soon after another whose outcome
+                            // brings a grain back to its earlier partner within L t_c turns soft
+                            // before it (engine/hybrid/hybrid.cpp lookahead_pair); 0 = off
   double hysteresis = 0.0;  // contact-free time before release; 0 = 10 k t_c (of the plan's t_c)
   double skin = 0.01;       // capture distance, as a fraction of the smallest diameter
   double cost_ratio = 10.0; // cost of one EDM collision per particle / cost of one TDM particle-step

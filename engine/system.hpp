@@ -169,10 +169,10 @@ struct EdmSettings {
   double thermo_interval = 0.0;   // 0 = only t = 0 and end
   double snapshot_interval = 0.0; // 0 = none; else snapshots at t = 0, every interval and the end
   std::uint64_t max_events = std::numeric_limits<std::uint64_t>::max();
-  // Inelastic-collapse detector: a particle that has collapse_count consecutive collisions,
-  // each within collapse_window of the previous one, stops the run with status "collapse".
-  int collapse_count = 1000;
-  double collapse_window = 0.0;   // 0 = 1e-9 * end_time
+  // Inelastic-collapse watch (engine/edm/collapse.hpp): a particle whose smoothed collision
+  // interval falls this many decades below its recent level stops the run with status "collapse"
+  // (the hybrid turns it soft instead); 0 = off.
+  double collapse_decades = 4.0;
   // When set and it turns true (a signal handler may set it), the run stops between two events
   // with status "interrupted": the state is that after the last event handled.
   const std::atomic<bool>* stop = nullptr;

@@ -2,7 +2,7 @@
 // one at the end, one when a signal stops it, and one every output.checkpoint_interval; `matep run
 // SCENE --resume FILE` continues it (io/run.cpp).
 //
-// Layout (version 1, little-endian, the machine's doubles): "MATEPCKP", u32 version, u32 byte-order
+// Layout (version 2, little-endian, the machine's doubles): "MATEPCKP", u32 version, u32 byte-order
 // mark 0x01020304, u64 body length, the body, u32 CRC-32C of everything before it. The body lists
 // (engine/state_archive.hpp's encoding): the method and dimension, the scene as canonical TOML,
 // the time, what each output file held (length and CRC-32C), the event log's unfinished block,
@@ -20,7 +20,7 @@
 namespace matep {
 
 inline constexpr char kCheckpointMagic[8] = {'M', 'A', 'T', 'E', 'P', 'C', 'K', 'P'};
-inline constexpr std::uint32_t kCheckpointVersion = 1;
+inline constexpr std::uint32_t kCheckpointVersion = 2;  // 2: an EDM particle holds its collapse watch
 inline constexpr const char* kCheckpointName = "checkpoint.bin";
 
 struct Checkpoint {

@@ -35,8 +35,7 @@ EdmSettings edm_settings(const Scene& s) {
   e.thermo_interval = s.output.thermo_interval;
   e.snapshot_interval = s.output.snapshot_interval;
   if (s.max_events > 0) e.max_events = s.max_events;
-  e.collapse_count = s.collapse_count;
-  e.collapse_window = s.collapse_window;
+  e.collapse_decades = s.collapse_decades;
   e.stop = &stop_flag();
   return e;
 }
@@ -61,6 +60,7 @@ HybridSettings hybrid_settings(const Scene& s) {
   const HybridSpec& y = s.hybrid;
   if (y.stability) h.stability = *y.stability;
   if (y.repeats) h.repeats = *y.repeats;
+  if (y.lookahead) h.lookahead = *y.lookahead;
   if (y.hysteresis) h.hysteresis = *y.hysteresis;
   if (y.skin) h.skin = *y.skin;
   if (y.cost_ratio) h.cost_ratio = *y.cost_ratio;
@@ -506,10 +506,11 @@ std::string describe(const Scene& scene, const System<D>& sys) {
                      dt > 0.0 ? std::ceil(scene.end_time / dt) : 0.0);
     if (scene.method == Method::Hybrid) {
       const HybridSettings h = hybrid_settings(scene);
-      s += fmt::format("hybrid rule  soft when {} collisions in a row each follow the previous one within {} t_c, or the\n"
+      s += fmt::format("hybrid rule  soft when {} collisions in a row each follow the previous one within {} t_c, when a\n"
+                       "             strongly inelastic one would send a grain back to its earlier partner within {} t_c, or when the\n"
                        "             collision interval falls below {} substeps (cost); capture skin {} of the smallest\n"
                        "             diameter; release after {:.6g} s without contact{}\n",
-                       h.repeats, h.stability, h.cost_ratio, h.skin,
+                       h.repeats, h.stability, h.lookahead, h.cost_ratio, h.skin,
                        h.hysteresis > 0.0 ? h.hysteresis : 10.0 * h.stability * plan.contact_time,
                        h.rest_speed > 0.0 ? fmt::format("; quiet grains (speed < {} m/s) sleep", h.rest_speed)
                                           : std::string());

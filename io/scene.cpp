@@ -1142,8 +1142,12 @@ Scene build_scene(toml::table& root, const std::string& file, const fs::path& ba
 
   // [run]
   const TableReader run = top.sub("run");
-  run.allow({"dimension", "method", "start_time", "end_time", "seed", "gravity", "queue", "tc", "collapse_count",
-             "collapse_window", "max_events", "dt", "threads"});
+  for (const char* gone : {"collapse_count", "collapse_window"})
+    if (run.has(gone))
+      run.fail(gone, "is no longer a key: the collapse watch judges a particle's collision intervals against "
+                     "its own recent ones, set by run.collapse_decades (README \"Inelastic collapse\")");
+  run.allow({"dimension", "method", "start_time", "end_time", "seed", "gravity", "queue", "tc", "collapse_decades",
+             "max_events", "dt", "threads"});
   const std::int64_t dim = run.integer("dimension");
   if (dim != 2 && dim != 3) run.fail("dimension", "must be 2 or 3", run.need("dimension"));
   scene.dimension = static_cast<int>(dim);
@@ -1155,8 +1159,9 @@ Scene build_scene(toml::table& root, const std::string& file, const fs::path& ba
   scene.seed = static_cast<std::uint64_t>(run.integer_or("seed", 1, kNonNegative));
   scene.queue = run.string_opt("queue", {"calendar", "heap"}).value_or("calendar");
   scene.tc = run.number_or("tc", 0.0, kNonNegative);
-  scene.collapse_count = static_cast<int>(run.integer_or("collapse_count", EdmSettings{}.collapse_count, Range{2.0, 2147483647.0}));
-  scene.collapse_window = run.number_or("collapse_window", 0.0, kNonNegative);
+  scene.collapse_decades = run.number_or("collapse_decades", EdmSettings{}.collapse_decades, Range{0.0, 30.0});
+  if (scene.collapse_decades > 0.0 && scene.collapse_decades < 1.0)
+    run.fail("collapse_decades", fmt::format("must be 0 (off) or at least 1 (got {})", scene.collapse_decades));
   scene.max_events = static_cast<std::uint64_t>(run.integer_or("max_events", 0, kNonNegative));
   scene.dt = run.number_opt("dt", kPositive);
   if (const auto th = run.integer_opt("threads", Range{1.0, 1048576.0})) scene.threads = static_cast<int>(*th);
@@ -1164,12 +1169,13 @@ Scene build_scene(toml::table& root, const std::string& file, const fs::path& ba
   // [hybrid]
   if (top.has("hybrid")) {
     const TableReader hy = top.sub("hybrid");
-    hy.allow({"stability", "repeats", "hysteresis", "skin", "cost_ratio", "rest_speed", "rest_time"});
+    hy.allow({"stability", "repeats", "lookahead", "hysteresis", "skin", "cost_ratio", "rest_speed", "rest_time"});
     // Read and checked whatever run.method is (so that --set run.method=tdm compares a hybrid
     // scene with the pure methods); used only by the hybrid engine.
     HybridSpec& h = scene.hybrid;
     h.stability = hy.number_opt("stability", kPositive);
     if (const auto r = hy.integer_opt("repeats", Range{1.0, 1000.0})) h.repeats = static_cast<int>(*r);
+    h.lookahead = hy.number_opt("lookahead", kNonNegative);
     h.hysteresis = hy.number_opt("hysteresis", kPositive);
     h.skin = hy.number_opt("skin", kPositive);
     h.cost_ratio = hy.number_opt("cost_ratio", kPositive);

@@ -39,7 +39,7 @@ struct OutputSpec {
 
 // [hybrid]: the switching rule of run.method = "hybrid" (engine/hybrid.hpp); unset = default.
 struct HybridSpec {
-  std::optional<double> stability, hysteresis, skin, cost_ratio, rest_speed, rest_time;
+  std::optional<double> stability, lookahead, hysteresis, skin, cost_ratio, rest_speed, rest_time;
   std::optional<int> repeats;
 };
 
@@ -53,8 +53,7 @@ struct Scene {
   double end_time = 1.0;
   std::uint64_t seed = 1;
   double tc = 0.0;                // run.tc, TC model; 0 = off
-  int collapse_count = EdmSettings{}.collapse_count;  // run.collapse_count (the engine's default)
-  double collapse_window = 0.0;   // run.collapse_window; 0 = 1e-9 * end_time
+  double collapse_decades = EdmSettings{}.collapse_decades;  // run.collapse_decades (the engine's default)
   std::uint64_t max_events = 0;   // run.max_events; 0 = unlimited
   std::optional<double> dt;       // run.dt (soft-sphere time step, > 0); unset = engine's choice
   std::optional<int> threads;     // run.threads (soft-sphere, >= 1); unset = engine's choice

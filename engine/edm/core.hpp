@@ -34,6 +34,7 @@
 #include "contact/soft.hpp"
 #include "contact/wall.hpp"
 #include "engine/edm.hpp"
+#include "engine/edm/collapse.hpp"
 #include "engine/grid.hpp"
 #include "engine/huge_pages.hpp"
 #include "engine/impulse_tally.hpp"
@@ -99,6 +100,9 @@ class EdmCore {
   void ext_removed(int) {}
   // Grain i has just been inserted by an inlet at t (in its cell; predicted after this hook).
   void ext_inserted(int, double) {}
+  // The collapse watch of hard particle i fired at a collision just resolved: true when the
+  // extension takes i over instead of the run ending with status "collapse".
+  bool ext_collapse(int) { return false; }
 
   // Registers a system event; its id is the returned value (valid once init has run).
   int add_system_event(const char* name, std::function<bool(double)> fire) {
@@ -117,7 +121,7 @@ class EdmCore {
     lo_ = sys.lower;
     hi_ = sys.upper;
     L_ = hi_ - lo_;
-    window_ = set_.collapse_window > 0.0 ? set_.collapse_window : 1e-9 * set_.end_time;
+    collapse_depth_ = CollapseWatch::depth_units(set_.collapse_decades);
     now_ = last_sample_time_ = last_snapshot_time_ = set_.start_time;
     // System events, in this order: thermo sampler, end of run, snapshots, then the extension's.
     sample_id_ = add_system_event("thermo", [this](double t) { return on_sample_event(t); });
@@ -602,6 +606,7 @@ class EdmCore {
 
   // Full prediction for particle i, which must be at time `now`: crossing, walls, all pairs.
   void predict(int i, double now) {
+    if (!derived().predicted(i)) return;  // an extension took i over at this event
     derived().ext_on_predict(i);
     predict_crossing(i, now);
     const Hot<D>& h = hot_[i];
@@ -678,20 +683,20 @@ class EdmCore {
     return mixed_restitution(a, sys_.materials[mj].restitution, u);
   }
 
-  // Collapse detector and TC bookkeeping for a particle that just collided at `now`.
+  // Collapse watch (engine/edm/collapse.hpp) and TC bookkeeping for a particle that just collided
+  // at `now`.
   void note_collision(int i) {
-    if (now_ - cold_[i].last < window_) {
-      if (++cold_[i].rapid >= set_.collapse_count && status_.empty()) {
-        status_ = "collapse";
-        message_ = fmt::format(
-            "inelastic collapse: particle {} had {} consecutive collisions less than {:.3g} "
-            "apart, at t = {:.17g}; set run.tc > 0 (TC model) to make such collisions elastic",
-            i, cold_[i].rapid, window_, now_);
-      }
-    } else {
-      cold_[i].rapid = 0;
+    Cold& c = cold_[i];
+    if (c.watch.note(now_ - c.last, collapse_depth_) && status_.empty() && !derived().ext_collapse(i)) {
+      status_ = "collapse";
+      message_ = fmt::format(
+          "inelastic collapse: the collisions of particle {} came ever faster, its smoothed interval "
+          "falling {:.1f} decades (from {:.3g} s to {:.3g} s) at t = {:.17g}; set run.tc > 0 (TC model) "
+          "to make such collisions elastic, or use method = \"hybrid\"",
+          i, CollapseWatch::decades(c.watch.high - c.watch.fast), c.watch.high_seconds(),
+          c.watch.fast_seconds(), now_);
     }
-    cold_[i].last = now_;
+    c.last = now_;
   }
 
   void handle(int i, double t) {
@@ -1200,7 +1205,7 @@ class EdmCore {
   int next_id_ = 0;
   std::uint64_t grains_in_ = 0;
   double mass_in_ = 0.0;
-  double window_ = 0.0;
+  std::int32_t collapse_depth_ = 0;  // run.collapse_decades in CollapseWatch units
   double now_ = 0.0;
 
   template <class T>
@@ -1216,13 +1221,14 @@ class EdmCore {
     int partner = -1;         // pair partner or wall index of ev_t
     std::uint32_t pcount = 0; // partner's collision counter when predicted
     std::uint32_t counter = 0;// own collision counter
-    int rapid = 0;            // consecutive rapid collisions (collapse detector)
+    CollapseWatch watch;      // engine/edm/collapse.hpp
     std::array<int, D> cell{};
     int mat = 0;
     std::uint8_t type = kNone;  // kind of ev_t
     std::uint8_t aux = 0;       // crossing: 2 * axis + up
   };
   Array<Cold> cold_;
+  static_assert(D != 3 || sizeof(Cold) == 64, "a 3D particle's event data is one cache line");
 
   CellGrid<D> grid_;  // engine/grid.hpp
   Array<int> head_, next_;

@@ -113,6 +113,8 @@ class SwitchRule {
   }
 
   double interval(int i) const { return ema_[i]; }
+  // The partner of i's collision before its latest one (-1 if none).
+  int earlier_partner(int i) const { return recent_[i][1]; }
   int rapid_count(int i) const { return rapid_[i]; }
 
  private:

@@ -45,6 +45,21 @@ TEST(SwitchRule, TheRepeatsThCollisionWithinTheWindowTurnsThePairSoft) {
   EXPECT_EQ(r.pair(0, 2, t, last0, last2, tc), Switch::Stability);
 }
 
+TEST(SwitchRule, TheEarlierPartnerIsTheOneBeforeTheLatestCollision) {
+  // The lookahead (hybrid.cpp) asks it after a collision the rule let stay hard: a grain going
+  // back and forth between two others has its earlier partner on the far side.
+  SwitchRule r = rule();
+  EXPECT_EQ(r.earlier_partner(1), -1);
+  EXPECT_EQ(r.pair(1, 0, 1.0, -kNever, -kNever, tc), Switch::Stay);
+  EXPECT_EQ(r.earlier_partner(1), -1);
+  EXPECT_EQ(r.pair(1, 2, 2.0, 1.0, -kNever, tc), Switch::Stay);
+  EXPECT_EQ(r.earlier_partner(1), 0);
+  EXPECT_EQ(r.earlier_partner(2), -1);
+  EXPECT_EQ(r.pair(1, 0, 3.0, 2.0, 1.0, tc), Switch::Stay);
+  EXPECT_EQ(r.earlier_partner(1), 2);
+  EXPECT_EQ(r.earlier_partner(0), 1);
+}
+
 TEST(SwitchRule, ASlowCollisionBreaksTheRun) {
   SwitchRule r = rule();
   double t = 0.0, last = -kNever;

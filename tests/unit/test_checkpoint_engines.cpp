@@ -237,8 +237,7 @@ RunResult<D> run_case(const Scene& sc, const System<D>& sys, const CheckpointHoo
   e.end_time = sc.end_time;
   e.tc = sc.tc;
   e.thermo_interval = sc.output.thermo_interval;
-  e.collapse_count = sc.collapse_count;
-  e.collapse_window = sc.collapse_window;
+  e.collapse_decades = sc.collapse_decades;
   e.checkpoint = h;
   e.stop = stop;
   if (sc.method == Method::Edm) return run_edm<D>(sys, e, QueueKind::Calendar, {obs});

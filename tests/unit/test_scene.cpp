@@ -30,8 +30,7 @@ seed = 42
 gravity = [0.0, -1.0]
 queue = "heap"
 tc = 1e-6
-collapse_count = 50
-collapse_window = 1e-8
+collapse_decades = 6
 max_events = 100000
 
 [domain]
@@ -153,8 +152,7 @@ TEST(Scene, Valid2DRoundTrip) {
   EXPECT_EQ(sc.end_time, 10.0);
   EXPECT_EQ(sc.seed, 42u);
   EXPECT_EQ(sc.tc, 1e-6);
-  EXPECT_EQ(sc.collapse_count, 50);
-  EXPECT_EQ(sc.collapse_window, 1e-8);
+  EXPECT_EQ(sc.collapse_decades, 6.0);
   EXPECT_EQ(sc.max_events, 100000u);
   EXPECT_FALSE(sc.dt.has_value());
   EXPECT_FALSE(sc.threads.has_value());
@@ -436,7 +434,12 @@ TEST(SceneErrors, ImpossibleValues) {
   expect_error(edit(kScene2D, "poisson = 0.22", "poisson = 0.7"), {"material.glass.poisson", "(-1, 0.5]", "0.7"});
   expect_error(edit(kScene2D, "end_time = 10.0", "end_time = 0"), {"run.end_time", "must be > 0", "0"});
   expect_error(edit(kScene2D, "upper = [20.0, 20.0]", "upper = [20.0, -1.0]"), {"domain.upper", "[20, -1]"});
-  expect_error(edit(kScene2D, "collapse_count = 50", "collapse_count = 1"), {"run.collapse_count", "1"});
+  expect_error(edit(kScene2D, "collapse_decades = 6", "collapse_decades = 0.5"),
+               {"run.collapse_decades", "at least 1", "0.5"});
+  expect_error(edit(kScene2D, "collapse_decades = 6", "collapse_decades = 31"), {"run.collapse_decades", "31"});
+  // The keys of the absolute-window detector are refused with the key that replaced them.
+  expect_error(edit(kScene2D, "collapse_decades = 6", "collapse_window = 1e-8"),
+               {"run.collapse_window", "run.collapse_decades"});
   expect_error(edit(kScene2D, "temperature = 2.0", "temperature = -1"), {"particles.gas.temperature", "-1"});
   expect_error(edit(kScene2D, "upper = [8.0, 18.0]", "upper = [8.0, 25.0]"),
                {"particles.block.region.upper", "outside the domain", "[8, 25]"});

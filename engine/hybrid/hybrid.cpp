@@ -328,6 +328,10 @@ class HybridEngine final : public edm::EdmCore<D, CalendarQueue, HybridEngine<D>
         fz_tmix_.assign(N_, Spin<D>::Zero());
       }
       fz_scale_.assign(N_, 0.0);
+      fz_overlap_.assign(N_, 0.0);
+      fz_disp2_.assign(N_, 0.0);
+      fz_contacts_.assign(N_, 0);
+      x_check_.assign(N_, Vec<D>::Zero());
       fz_lost_.assign(N_, 0);
       fz_cand_.assign(N_, 0);
     }
@@ -1366,6 +1370,8 @@ class HybridEngine final : public edm::EdmCore<D, CalendarQueue, HybridEngine<D>
       double s2 = hot_[i].v.squaredNorm();
       if (rot_) s2 += sys_.w[i].squaredNorm() * hot_[i].R * hot_[i].R;
       quiet_checks_[i] = rest_.quiet(quiet_checks_[i], s2);
+      fz_disp2_[i] = (hot_[i].x - x_check_[i]).squaredNorm();
+      x_check_[i] = hot_[i].x;
     }
     for (const auto& e : we_)
       if (shapes_[e.w]->moving()) quiet_checks_[e.i] = 0;
@@ -1382,18 +1388,30 @@ class HybridEngine final : public edm::EdmCore<D, CalendarQueue, HybridEngine<D>
           fz_tmix_[i].setZero();
         }
         fz_scale_[i] = 0.0;  // first the sum of its contact stiffnesses
+        fz_overlap_[i] = 0.0;
+        fz_contacts_[i] = 0;
       }
     }
     if (!any) return;
     // 1. The static net contact force of each candidate and its mean contact force.
     pairs_.for_each([&](const PairEntry& e) {
-      if (!e.touch || !(fz_cand_[e.i] || fz_cand_[e.j])) return;
+      if (!(fz_cand_[e.i] || fz_cand_[e.j])) return;
+      if (!e.touch) {  // settled: a contact about to form keeps both ends awake
+        Vec<D> dx = hot_[e.i].x - hot_[e.j].x;
+        min_image(dx);
+        const double r = dx.norm(), gap = r - hot_[e.i].R - hot_[e.j].R;
+        if (gap > 0.0 && RestRule::closing(gap, (hot_[e.i].v - hot_[e.j].v).dot(dx) / r, rest_time_))
+          fz_cand_[e.i] = fz_cand_[e.j] = 0;
+        return;
+      }
       const StaticForce sf = static_pair_force(e);
       const double k_n = normal_stiffness(ctab_[e.c], sf.delta);
       for (const int k : {static_cast<int>(e.i), static_cast<int>(e.j)}) {
         if (!fz_cand_[k]) continue;
         add_share(fz_base_, fz_tbase_, k, e, sf, 1.0);
         fz_scale_[k] += k_n;
+        fz_overlap_[k] += std::max(sf.delta, 0.0);
+        ++fz_contacts_[k];
       }
     });
     for (const auto& e : we_) {
@@ -1402,6 +1420,8 @@ class HybridEngine final : public edm::EdmCore<D, CalendarQueue, HybridEngine<D>
       fz_base_[e.i] += sf.f;
       if (rot_) fz_tbase_[e.i] += sf.ti;
       fz_scale_[e.i] += normal_stiffness(ctab_[e.c], sf.delta);
+      fz_overlap_[e.i] += std::max(sf.delta, 0.0);
+      ++fz_contacts_[e.i];
     }
     // 2. Candidates in equilibrium fall asleep.
     std::size_t keep = 0;
@@ -1413,7 +1433,8 @@ class HybridEngine final : public edm::EdmCore<D, CalendarQueue, HybridEngine<D>
         const double m = mass(i);
         // Wake threshold W (engine/hybrid/rest.hpp) from the sum of its contact stiffnesses.
         fz_scale_[i] = rest_.wake_threshold(m, fz_scale_[i]);
-        if (RestRule::balanced(fz_base_[i], m, g_, fz_scale_[i])) {
+        const double overlap = fz_contacts_[i] > 0 ? fz_overlap_[i] / fz_contacts_[i] : 0.0;
+        if (RestRule::balanced(fz_base_[i], m, g_, fz_scale_[i]) && RestRule::settled(fz_disp2_[i], overlap, quiet_checks_[i])) {
           freeze(i);
           fz_cand_[i] = 1;  // now: fell asleep at this check
           fresh_.push_back(i);
@@ -1610,7 +1631,7 @@ class HybridEngine final : public edm::EdmCore<D, CalendarQueue, HybridEngine<D>
     a(hstats_soft_begun_);
     a(hstats_);
     a.tag("hybrid.soft");
-    for (auto* v : {&vh_, &acc_, &f_, &x0_, &cblo_, &cbhi_, &fz_base_, &fz_mix_}) a(*v);
+    for (auto* v : {&vh_, &acc_, &f_, &x0_, &cblo_, &cbhi_, &fz_base_, &fz_mix_, &x_check_}) a(*v);
     for (auto* v : {&wh_, &alpha_, &tq_, &wmr_, &fz_tmix_, &fz_tbase_}) a(*v);
     for (auto* v : {&minv_, &iinv_, &last_contact_, &iface_next_, &rate_t0_, &fz_scale_}) a(*v);
     for (auto* v : {&quiet_checks_, &slot_, &soft_, &pending_, &iface_, &group_, &gslot_, &gstart_, &gfill_, &woken_,
@@ -1728,6 +1749,11 @@ class HybridEngine final : public edm::EdmCore<D, CalendarQueue, HybridEngine<D>
   std::vector<int> sg_start_, sg_items_, sg_cell_, sg_part_, sg_fill_;
   std::vector<std::uint64_t> moved_, moved_w_;
   std::vector<double> fz_scale_;
+  // The rest rule's creep test: each soft grain's position at the last check, and a candidate's
+  // displacement since, summed overlap and contact count (scratch of one check).
+  std::vector<Vec<D>> x_check_;
+  std::vector<double> fz_overlap_, fz_disp2_;
+  std::vector<int> fz_contacts_;
   std::vector<int> watched_;
   std::vector<std::uint8_t> fz_cand_, fz_lost_, watch_flag_;
 

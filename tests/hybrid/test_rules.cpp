@@ -196,5 +196,23 @@ TEST(RestRule, QuietChecksBalanceLoadAndApproach) {
   EXPECT_FALSE(r.approached(0.02));  // receding
 }
 
+TEST(RestRule, AGrainStillCreepingOrAboutToCloseAContactStaysAwake) {
+  // Creep: a grain with contacts of mean overlap 2e-5 m that moved 2e-6 m since the last check
+  // (1/10 of it) is still compacting the bed; 5e-7 m (1/40) is at rest. After kCreepChecks more
+  // quiet checks it sleeps whatever it does (a lightly loaded grain's overlap is tiny).
+  const double ov = 2e-5;
+  EXPECT_FALSE(RestRule::settled(2e-6 * 2e-6, ov, RestRule::kQuietChecks));
+  EXPECT_TRUE(RestRule::settled(5e-7 * 5e-7, ov, RestRule::kQuietChecks));
+  EXPECT_TRUE(RestRule::settled(std::pow(RestRule::kCreep * ov, 2), ov, RestRule::kQuietChecks));
+  EXPECT_FALSE(RestRule::settled(2e-6 * 2e-6, ov, RestRule::kQuietChecks + RestRule::kCreepChecks - 1));
+  EXPECT_TRUE(RestRule::settled(2e-6 * 2e-6, ov, RestRule::kQuietChecks + RestRule::kCreepChecks));
+  // A gap of 1e-5 m closing at 1 mm/s closes in 10 ms: within a rest time of 20 ms, not of 5 ms;
+  // a receding or still neighbour never does.
+  EXPECT_TRUE(RestRule::closing(1e-5, -1e-3, 0.02));
+  EXPECT_FALSE(RestRule::closing(1e-5, -1e-3, 0.005));
+  EXPECT_FALSE(RestRule::closing(1e-5, 1e-3, 1.0));
+  EXPECT_FALSE(RestRule::closing(1e-5, 0.0, 1.0));
+}
+
 }  // namespace
 }  // namespace matep::hybrid

@@ -15,7 +15,7 @@ packing fraction (a lattice reaches phi = 0.5; random placement stops at 0.384),
 velocities at T = 1, constant restitution e, linear spring-dashpot with k_n = 9e4 for the soft
 methods (overlaps near 1 % of d, as cases/soft_gas.toml), no friction, run to t = 20.
 Panels:
-* EDM: pure event-driven hard spheres (collapse detector at its defaults);
+* EDM: pure event-driven hard spheres (collapse watch at its defaults);
 * TDM at the default step (t_c/50);
 * TDM at 0.8 x the stability limit `matep check` prints for the cell (limit
   2/(eta + sqrt(eta^2 + omega0^2)) of one pair contact; a dense or strongly damped gas may still
@@ -25,7 +25,7 @@ Panels:
 * hybrid at its default rule (run.method = "hybrid"): "refused" while the CLI refuses the method.
 Soft runs use one thread. Every run has run.max_events = 10^6 (a legitimate run of this map needs
 fewer than 40 000 events): an EDM run that stops there without reaching t = 20 is "stalled" - its
-clock stopped in a burst of collisions at one instant that the collapse detector did not catch
+clock stopped in a burst of collisions at one instant that the collapse detection did not catch
 (seen at e <= 0.2). Any other stop (escaped, a run past 300 s, a crash) is "failed".
 """
 from __future__ import annotations

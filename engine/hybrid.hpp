@@ -41,6 +41,11 @@ struct HybridSettings {
   double cost_ratio = 10.0; // cost of one EDM collision per particle / cost of one TDM particle-step
   double rest_speed = 0.0;  // sleeping threshold [m/s]; 0 = no sleeping
   double rest_time = 0.0;   // how long a grain must stay below rest_speed; 0 = 20 t_c
+  int threads = 1;          // the soft set's threads (0: all cores, OMP_NUM_THREADS respected); a run
+                            // is deterministic for a given count
+  int min_per_thread = 2048;  // awake soft grains per thread at least (fewer threads below; the
+                              // fork and join of each substep's parallel loops cost more than they
+                              // save on fewer, as in TDM)
 };
 
 // The checks run_hybrid makes before it starts (the soft plan, the substep against the stability

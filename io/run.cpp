@@ -66,6 +66,7 @@ HybridSettings hybrid_settings(const Scene& s) {
   if (y.cost_ratio) h.cost_ratio = *y.cost_ratio;
   if (y.rest_speed) h.rest_speed = *y.rest_speed;
   if (y.rest_time) h.rest_time = *y.rest_time;
+  h.threads = s.threads.value_or(0);
   return h;
 }
 

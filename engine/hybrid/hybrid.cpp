@@ -5,8 +5,11 @@
 
 #include <fmt/format.h>
 
+#include <omp.h>
+
 #include <algorithm>
 #include <array>
+#include <atomic>
 #include <cmath>
 #include <stdexcept>
 #include <tuple>
@@ -152,6 +155,14 @@ class HybridEngine final : public edm::EdmCore<D, CalendarQueue, HybridEngine<D>
     sg_w_ = 2.0 * rmax + lskin_;
     for (int k = 0; k < D; ++k) any_periodic_ = any_periodic_ || sys_.periodic[k];
     hybrid_arrays();
+    own_.assign(N_, kUnowned);
+    spill_.resize(T_req_);
+    loads_t_.resize(T_req_);
+    for (auto& l : loads_t_) l.resize(shapes_.size());
+    t_relocate_.resize(T_req_);
+    t_leaving_.resize(T_req_);
+    t_freed_.resize(T_req_);
+    rb_.resize(T_req_);
     for (std::size_t sft = 0; sft < shifts_.size(); ++sft) {  // index sum_k (s_k + 1) 3^k, s_k in {-1, 0, 1}
       std::size_t r = sft;
       for (int k = 0; k < D; ++k) {
@@ -222,18 +233,51 @@ class HybridEngine final : public edm::EdmCore<D, CalendarQueue, HybridEngine<D>
     Vec<D> xi;
   };
   // A new wall entry (with its rolling spring torque in wmr_ when the scene needs one).
-  WallEntry new_wall_entry(int i, int w, std::uint32_t f) {
-    WallEntry e{i, w, f, wall_contact_of(w, i), 0, 0, Vec<D>::Zero()};
+  WallEntry new_wall_entry(int i, int w, std::uint32_t f) { return new_wall_entry_in(i, w, f, ctab_, wmr_); }
+  WallEntry new_wall_entry_in(int i, int w, std::uint32_t f, std::vector<SoftContact>& tab,
+                              std::vector<Spin<D>>& wmr) const {
+    WallEntry e{i, w, f, wall_contact_in(w, i, tab), 0, 0, Vec<D>::Zero()};
     if (epsd_) {
-      e.r = static_cast<std::uint32_t>(wmr_.size());
-      wmr_.push_back(Spin<D>::Zero());
+      e.r = static_cast<std::uint32_t>(wmr.size());
+      wmr.push_back(Spin<D>::Zero());
     }
     return e;
   }
   Spin<D>* wall_mr(const WallEntry& e) { return epsd_ ? &wmr_[e.r] : nullptr; }
 
+  // ---- threads of the soft set ----
+  // A force on a particle that the computing thread does not own, added after the parallel loop.
+  struct Spill {
+    std::uint32_t j;
+    Vec<D> f;
+    Spin<D> t;
+  };
+  static constexpr int kMaxThreads = 64;
+  static constexpr std::uint8_t kUnowned = 255, kMulti = 254;  // own_: no thread owns the particle
+  // The threads for n awake soft grains: at least HybridSettings::min_per_thread each.
+  int threads_for(std::size_t n) {
+    const int T = std::max(1, std::min<int>(T_req_, static_cast<int>(n / min_per_thread_)));
+    threads_used_ = std::max(threads_used_, T);
+    return T;
+  }
+  // body(t) for t = 0 .. T - 1, on T threads (fewer if OpenMP grants fewer: each runs several).
+  template <class F>
+  static void parallel(int T, F&& body) {
+    if (T == 1) {
+      body(0);
+      return;
+    }
+#pragma omp parallel num_threads(T)
+    for (int t = omp_get_thread_num(); t < T; t += omp_get_num_threads()) body(t);
+  }
+  // Flags and counters another thread may set at the same time (relaxed atomics).
+  static void flag(std::uint8_t& b) { std::atomic_ref<std::uint8_t>(b).store(1, std::memory_order_relaxed); }
+  static void bump(std::uint32_t& c) { std::atomic_ref<std::uint32_t>(c).fetch_add(1, std::memory_order_relaxed); }
+
   void hybrid_setup(const HybridSettings& hs, const SoftPlan* plan) {
     hset_ = hs;
+    T_req_ = std::clamp(hs.threads > 0 ? hs.threads : omp_get_max_threads(), 1, kMaxThreads);
+    min_per_thread_ = static_cast<std::size_t>(std::max(1, hs.min_per_thread));
     plan_ = plan ? *plan : plan_soft<D>(sys_);
     h_ = hybrid_substep(plan_, hs);
     hdt_ = 0.5 * h_;
@@ -694,22 +738,25 @@ class HybridEngine final : public edm::EdmCore<D, CalendarQueue, HybridEngine<D>
   // table rebuilt for the live entries at each list build (rebuild_entries): a polydisperse scene
   // has a different constant for nearly every pair, and a table of every pair ever met grew
   // without bound and cost a tree search per entry (47 % of a 2D chute flow's time).
-  std::uint32_t pair_contact_of(int a, int b) {
+  std::uint32_t pair_contact_of(int a, int b) { return pair_contact_in(a, b, ctab_); }
+  std::uint32_t wall_contact_of(int w, int i) { return wall_contact_in(w, i, ctab_); }
+  // The same, appending a new constant to the table `tab` (a thread's during a list build).
+  std::uint32_t pair_contact_in(int a, int b, std::vector<SoftContact>& tab) const {
     if (is_fixed(a) || is_fixed(b)) {  // m* = the moving grain's mass
       if (is_fixed(a)) std::swap(a, b);
       if (uniform_) return 1 + static_cast<std::uint32_t>(sys_.walls.size());
-      return add_contact(pair_contact(plan_, cold_[a].mat, hot_[a].R, mass(a), cold_[b].mat, hot_[b].R, kPlane));
+      return add_contact(tab, pair_contact(plan_, cold_[a].mat, hot_[a].R, mass(a), cold_[b].mat, hot_[b].R, kPlane));
     }
     if (uniform_) return 0;
-    return add_contact(pair_contact(plan_, cold_[a].mat, hot_[a].R, mass(a), cold_[b].mat, hot_[b].R, mass(b)));
+    return add_contact(tab, pair_contact(plan_, cold_[a].mat, hot_[a].R, mass(a), cold_[b].mat, hot_[b].R, mass(b)));
   }
-  std::uint32_t wall_contact_of(int w, int i) {
+  std::uint32_t wall_contact_in(int w, int i, std::vector<SoftContact>& tab) const {
     if (uniform_) return 1 + static_cast<std::uint32_t>(w);
-    return add_contact(wall_contact(plan_, w, cold_[i].mat, hot_[i].R, mass(i)));
+    return add_contact(tab, wall_contact(plan_, w, cold_[i].mat, hot_[i].R, mass(i)));
   }
-  std::uint32_t add_contact(const SoftContact& c) {
-    ctab_.push_back(c);
-    return static_cast<std::uint32_t>(ctab_.size() - 1);
+  static std::uint32_t add_contact(std::vector<SoftContact>& tab, const SoftContact& c) {
+    tab.push_back(c);
+    return static_cast<std::uint32_t>(tab.size() - 1);
   }
 
   static std::uint64_t key(std::uint32_t a, std::uint32_t b) { return (std::uint64_t(a) << 32) | b; }
@@ -757,28 +804,94 @@ class HybridEngine final : public edm::EdmCore<D, CalendarQueue, HybridEngine<D>
     for (const int j : watched_) watch_flag_[j] = 0;
     watched_.clear();
     soft_grid_build();
-    for (const int i : soft_) {
-      x0_[i] = hot_[i].x;
-      const Vec<D> xi = hot_[i].x;
-      const double Ri = hot_[i].R;
-      pairs_.begin_row(ui(i));
-      soft_grid_neighbours(i, [&](int j, const Vec<D>& shift) {
-        const std::uint8_t m = mode_[j];
-        if (!((m == kSoft && j > i) || m == kAsleep || m == kFixed)) return;
-        const double cut = Ri + hot_[j].R + lskin_;
-        if ((xi - hot_[j].x - shift).squaredNorm() >= cut * cut) return;
-        PairEntry e{ui(i), ui(j), pair_contact_of(i, j), image_of(shift), 0, Vec<D>::Zero()};
-        if (mem.recall_pair(ui(i), ui(j), e.xi, &e.mr)) e.touch = 1;
-        pairs_.add(e);
-        if (m == kAsleep) watch(j);
+    const int T = threads_for(soft_.size());
+    if (T == 1) {
+      BuildSink out{pairs_, we_, ctab_, wmr_, watch_new_, feats_};
+      for (const int i : soft_) build_row(i, t, mem, out);
+    } else {
+      // Each thread builds the rows of a range of the soft set into its own lists; they are
+      // appended in thread order (the same rows, in the same order, as one thread builds), their
+      // contact-constant and rolling-torque indices shifted past the earlier threads'.
+      const std::size_t n = soft_.size();
+      parallel(T, [&](int th) {
+        RowBuild& b = rb_[th];
+        b.clear(epsd_);
+        BuildSink out{b.pairs, b.walls, b.ctab, b.wmr, b.watch, b.feats};
+        for (std::size_t k = n * th / T, end = n * (th + 1) / T; k < end; ++k) build_row(soft_[k], t, mem, out);
       });
-      pairs_.end_row();
-      const std::size_t w0 = we_.size();
-      add_walls_only(i, t);
-      for (std::size_t k = w0; k < we_.size(); ++k)
-        if (mem.recall_wall(ui(i), wall_slot(ui(we_[k].w), we_[k].f), we_[k].xi, wall_mr(we_[k]))) we_[k].touch = 1;
+      for (int th = 0; th < T; ++th) {
+        RowBuild& b = rb_[th];
+        const std::uint32_t c0 = static_cast<std::uint32_t>(ctab_.size()), r0 = static_cast<std::uint32_t>(wmr_.size());
+        ctab_.insert(ctab_.end(), b.ctab.begin(), b.ctab.end());
+        wmr_.insert(wmr_.end(), b.wmr.begin(), b.wmr.end());
+        const std::size_t e0 = pairs_.size();
+        pairs_.append(b.pairs);
+        if (!uniform_)
+          for (std::size_t e = e0; e < pairs_.size(); ++e) pairs_.c[e] += c0;
+        for (WallEntry w : b.walls) {
+          if (!uniform_) w.c += c0;
+          w.r += r0;
+          we_.push_back(w);
+        }
+        watch_new_.insert(watch_new_.end(), b.watch.begin(), b.watch.end());
+      }
     }
+    for (const int j : watch_new_) watch(j);
+    watch_new_.clear();
     dirty_ = false;
+  }
+
+  // Where a list build puts the rows it makes: the pair list, the wall entries, the contact
+  // constants and rolling torques they index, the sleepers to watch, the walls' search scratch.
+  struct BuildSink {
+    soft::PairList<D>& pairs;
+    std::vector<WallEntry>& walls;
+    std::vector<SoftContact>& ctab;
+    std::vector<Spin<D>>& wmr;
+    std::vector<int>& watch;
+    std::vector<std::uint32_t>& feats;
+  };
+  struct RowBuild {
+    soft::PairList<D> pairs;
+    std::vector<WallEntry> walls;
+    std::vector<SoftContact> ctab;
+    std::vector<Spin<D>> wmr;
+    std::vector<int> watch;
+    std::vector<std::uint32_t> feats;
+    void clear(bool rolling) {
+      pairs.clear();
+      pairs.set_rolling(rolling);
+      walls.clear();
+      ctab.clear();
+      wmr.clear();
+      watch.clear();
+    }
+  };
+  // The row of awake soft i at a list build (rebuild_entries): its pairs with the soft particles
+  // after it, the sleepers and the fixed grains within the list skin, and its walls, each with the
+  // spring it had (mem).
+  void build_row(int i, double t, const soft::SpringMemory<D>& mem, BuildSink& out) {
+    x0_[i] = hot_[i].x;
+    const Vec<D> xi = hot_[i].x;
+    const double Ri = hot_[i].R;
+    out.pairs.begin_row(ui(i));
+    soft_grid_neighbours(i, [&](int j, const Vec<D>& shift) {
+      const std::uint8_t m = mode_[j];
+      if (!((m == kSoft && j > i) || m == kAsleep || m == kFixed)) return;
+      const double cut = Ri + hot_[j].R + lskin_;
+      if ((xi - hot_[j].x - shift).squaredNorm() >= cut * cut) return;
+      PairEntry e{ui(i), ui(j), pair_contact_in(i, j, out.ctab), image_of(shift), 0, Vec<D>::Zero()};
+      if (mem.recall_pair(ui(i), ui(j), e.xi, &e.mr)) e.touch = 1;
+      out.pairs.add(e);
+      if (m == kAsleep) out.watch.push_back(j);
+    });
+    out.pairs.end_row();
+    soft::walls_in_reach<D>(shapes_, xi, Ri, lskin_, t, out.feats, [&](std::uint32_t w, std::uint32_t f) {
+      WallEntry e = new_wall_entry_in(i, static_cast<int>(w), f, out.ctab, out.wmr);
+      Spin<D>* mr = epsd_ ? &out.wmr[e.r] : nullptr;
+      if (mem.recall_wall(ui(i), wall_slot(w, f), e.xi, mr)) e.touch = 1;
+      out.walls.push_back(e);
+    });
   }
 
   // The neighbour search of the list builds: the awake soft particles and the sleepers near them,
@@ -959,25 +1072,41 @@ class HybridEngine final : public edm::EdmCore<D, CalendarQueue, HybridEngine<D>
     Vec<D>* const VH = vh_.data();
     const Vec<D>* const X0 = x0_.data();
     const double* const MINV = minv_.data();
-    bool dirty = false;
     const bool outlets = !sys_.outlets.empty();
-    for (const int i : soft_) {
-      dirty |= soft::kick_drift<D>(FF[i], AC[i], VH[i], HOT[i].x, X0[i], MINV[i], g, h, lim2);
-      HOT[i].t = t;
-      const Vec<D>& x = HOT[i].x;
-      if (outlets) [[unlikely]] {
-        if (const int o = sys_.outlet_at(x); o >= 0) {
-          leaving_.emplace_back(i, o);
-          continue;
+    // (Threads: each drifts a range of the soft set and lists the grains that left their cell box
+    // or entered an outlet; those are handled after, in soft-set order, as one thread would.)
+    const int T = threads_for(soft_.size());
+    std::array<std::uint8_t, kMaxThreads> moved{};
+    const std::size_t n = soft_.size();
+    parallel(T, [&](int th) {
+      bool dirty = false;
+      std::vector<int>& reloc = t_relocate_[th];
+      std::vector<std::pair<int, int>>& leave = t_leaving_[th];
+      reloc.clear();
+      leave.clear();
+      for (std::size_t k = n * th / T, end = n * (th + 1) / T; k < end; ++k) {
+        const int i = soft_[k];
+        dirty |= soft::kick_drift<D>(FF[i], AC[i], VH[i], HOT[i].x, X0[i], MINV[i], g, h, lim2);
+        if (rot_) soft::kick_spin(tq_[i], alpha_[i], wh_[i], iinv_[i], h);
+        HOT[i].t = t;
+        const Vec<D>& x = HOT[i].x;
+        if (outlets) [[unlikely]] {
+          if (const int o = sys_.outlet_at(x); o >= 0) {
+            leave.emplace_back(i, o);
+            continue;
+          }
         }
+        // Still inside the box of its cell (edge cells of closed axes: up to the escape limit;
+        // NaN fails the test): no cell update.
+        if (!((x.array() >= BLO[i].array()).all() && (x.array() < BHI[i].array()).all())) reloc.push_back(i);
       }
-      // Still inside the box of its cell (edge cells of closed axes: up to the escape limit;
-      // NaN fails the test): no cell update.
-      if (!((x.array() >= BLO[i].array()).all() && (x.array() < BHI[i].array()).all())) relocate(i, t);
+      moved[th] = dirty;
+    });
+    for (int th = 0; th < T; ++th) {
+      if (moved[th]) dirty_ = true;
+      for (const int i : t_relocate_[th]) relocate(i, t);
+      leaving_.insert(leaving_.end(), t_leaving_[th].begin(), t_leaving_[th].end());
     }
-    if (dirty) dirty_ = true;
-    if (rot_)
-      for (const int i : soft_) soft::kick_spin(tq_[i], alpha_[i], wh_[i], iinv_[i], h);
     hstats_.soft_particle_steps += soft_.size();
     if (!leaving_.empty()) remove_soft(t);
     if (!status_.empty()) return;
@@ -1006,16 +1135,29 @@ class HybridEngine final : public edm::EdmCore<D, CalendarQueue, HybridEngine<D>
     std::uint8_t* const NEAR = near_.data();
     double* const LAST = last_contact_.data();
     freed_.clear();
-    for (const int i : soft_) {
-      const Vec<D> v = soft::full_step<D>(VH5[i], F5[i], MINV[i], g, hdt);
-      HOT[i].v = v;
-      vmax2 = std::max(vmax2, v.squaredNorm());
-      if (TOUCHING[i]) LAST[i] = t;
-      if (!TOUCHING[i] && !NEAR[i] && t - LAST[i] >= hyst) freed_.push_back(i);
-      TOUCHING[i] = NEAR[i] = 0;
+    const int T5 = threads_for(soft_.size());
+    std::array<double, kMaxThreads> vmax{};
+    const std::size_t n5 = soft_.size();
+    parallel(T5, [&](int th) {
+      double vm2 = 0.0;
+      std::vector<int>& freed = t_freed_[th];
+      freed.clear();
+      for (std::size_t k = n5 * th / T5, end = n5 * (th + 1) / T5; k < end; ++k) {
+        const int i = soft_[k];
+        const Vec<D> v = soft::full_step<D>(VH5[i], F5[i], MINV[i], g, hdt);
+        HOT[i].v = v;
+        vm2 = std::max(vm2, v.squaredNorm());
+        if (rot_) sys_.w[i] = wh_[i] + hdt * (tq_[i] * iinv_[i]);
+        if (TOUCHING[i]) LAST[i] = t;
+        if (!TOUCHING[i] && !NEAR[i] && t - LAST[i] >= hyst) freed.push_back(i);
+        TOUCHING[i] = NEAR[i] = 0;
+      }
+      vmax[th] = vm2;
+    });
+    for (int th = 0; th < T5; ++th) {
+      vmax2 = std::max(vmax2, vmax[th]);
+      freed_.insert(freed_.end(), t_freed_[th].begin(), t_freed_[th].end());
     }
-    if (rot_)
-      for (const int i : soft_) sys_.w[i] = wh_[i] + hdt * (tq_[i] * iinv_[i]);
     for (const int i : freed_) release(i, t);
     if (++since_cost_check_ >= cost_every_) {
       since_cost_check_ = 0;
@@ -1181,37 +1323,63 @@ class HybridEngine final : public edm::EdmCore<D, CalendarQueue, HybridEngine<D>
     std::uint64_t begun = 0;
     double vir = 0.0;
     bool fixed_j = false;  // the last partner() was a fixed grain
+    // Threads (soft_forces_law): this thread's index; a force on a particle this thread does not
+    // own (OWN, written before the loop) is spilled and added after it in thread order. The flags
+    // and counters of a partner may be another thread's: relaxed atomic stores (a plain store
+    // on x86) and, for the rare count of contacts begun, atomic increments.
+    const std::uint8_t* OWN = nullptr;  // null: one thread, everything direct
+    std::uint8_t tid = 0;
+    std::vector<Spill>* spill = nullptr;
 
+    bool mine(std::uint32_t k) const { return !OWN || OWN[k] == tid; }
     bool onset() const { return onset_ok; }
     const SoftContact& contact(std::uint32_t e, std::uint32_t, std::uint32_t, SoftContact&) const { return C[cidx[e]]; }
     std::uint32_t* BEGUN = nullptr;  // contacts begun per particle since its last cost check
     void began(std::uint32_t i, std::uint32_t j) {
       ++begun;
-      ++BEGUN[i];
-      ++BEGUN[j];
+      bump(BEGUN[i]);
+      bump(BEGUN[j]);
     }
     void opened(std::uint32_t i, std::uint32_t j) {
       // A sleeper that loses a contact wakes (its support may be gone).
       if (sleepers) {
-        if (MODE[i] == kAsleep) LOST[i] = 1;
-        if (MODE[j] == kAsleep) LOST[j] = 1;
+        if (MODE[i] == kAsleep) flag(LOST[i]);
+        if (MODE[j] == kAsleep) flag(LOST[j]);
       }
     }
     void overlap(double, double) {}
-    void touching(std::uint32_t i, std::uint32_t j) { TOUCHING[i] = TOUCHING[j] = 1; }
+    void touching(std::uint32_t i, std::uint32_t j) {
+      flag(TOUCHING[i]);
+      flag(TOUCHING[j]);
+    }
     // Release needs no particle within the capture skin, save a fixed one (a hard grain meets it in
     // EDM without being captured).
     void near(std::uint32_t i, std::uint32_t j) {
-      if (MODE[j] != kFixed) NEAR[i] = NEAR[j] = 1;
+      if (MODE[j] != kFixed) {
+        flag(NEAR[i]);
+        flag(NEAR[j]);
+      }
     }
     double near_skin() const { return skin; }
     bool any_asleep() const { return sleepers; }
     bool asleep(std::uint32_t i) const { return MODE[i] == kAsleep; }
     bool approached(double un) const { return rest.approached(un); }
-    void wake(std::uint32_t k) { LOST[k] = 1; }
+    void wake(std::uint32_t k) { flag(LOST[k]); }
+    [[gnu::always_inline]] void own_force(Vec<D>* FF, std::uint32_t i, const Vec<D>& f) {
+      if (mine(i)) FF[i] += f;
+      else spill->push_back({i, f, Spin<D>::Zero()});
+    }
+    [[gnu::always_inline]] void own_torque(Spin<D>* TQ, std::uint32_t i, const Spin<D>& t) {
+      if (mine(i)) TQ[i] += t;
+      else spill->push_back({i, Vec<D>::Zero(), t});
+    }
     [[gnu::always_inline]] void partner(Vec<D>* FF, Spin<D>* TQ, std::uint32_t j, const Vec<D>& f, const Spin<D>& t) {
       fixed_j = MODE[j] == kFixed;
       if (fixed_j) return;  // a fixed grain is never integrated
+      if (!mine(j)) {
+        spill->push_back({j, Vec<D>(-f), Rot ? t : Spin<D>(Spin<D>::Zero())});
+        return;
+      }
       FF[j] -= f;
       if constexpr (Rot) TQ[j] += t;
     }
@@ -1226,35 +1394,95 @@ class HybridEngine final : public edm::EdmCore<D, CalendarQueue, HybridEngine<D>
   void soft_forces_law() {
     any_periodic_ ? soft_forces_law<Law, Rot, Roll, true>() : soft_forces_law<Law, Rot, Roll, false>();
   }
+  // The pair rows split among T threads by their entries (rlo_), each thread then owning the
+  // particles whose rows all lie in its range (own_; kShared: rows in several ranges, or none); a
+  // thread computes its rows' pair forces and its own particles' wall contacts (thread 0 also
+  // those of the particles no thread owns: kUnowned, kMulti), spilling forces on particles it does
+  // not own; the spills are added after the loop in thread order, so a run is deterministic for a
+  // given thread count. One thread: everything in row order, then the walls in list order.
   template <NormalLaw Law, bool Rot, bool Roll, bool Periodic>
   MATEP_FLATTEN void soft_forces_law() {
     const double h = h_;
     const bool onset_ok = wall_t_ > 0.0;
-    SoftPolicy<Rot, Periodic> pol{ctab_.data(), pairs_.c.data(), touching_.data(), near_.data(), mode_.data(),
-                        fz_lost_.data(), skin_, rest_, onset_ok, asleep_ > 0};
-    pol.BEGUN = begun_n_.data();
-    soft::pair_rows<D, Law, Rot, Roll>(soft::Records<D, Hot<D>>{hot_.data()}, soft::bodies_of(vh_, acc_, f_, wh_, alpha_, tq_),
-                                 pairs_.as_rows(shifts_.data()), 0, static_cast<std::uint32_t>(pairs_.rows()), h, pol);
-    std::uint64_t begun = pol.begun;
-    const Spin<D> no_spin = Spin<D>::Zero();
-    Spin<D> tq_none = Spin<D>::Zero();
-    for (auto& e : we_) {
-      const int i = e.i;
-      bool began = false;
-      const soft::WallContact<D> c = walls_.with_wall(e.w, e.f, [&](const auto& shape) {
-        return soft::wall_contact<D, Law, Rot, Roll>(shape, wall_t_, h, onset_ok, hot_[i].x, hot_[i].R, vh_[i], acc_[i],
-                                               Rot ? wh_[i] : no_spin, Rot ? alpha_[i] : no_spin, ctab_[e.c], e.touch,
-                                               e.xi, began, f_[i], Rot ? tq_[i] : tq_none, wall_mr(e));
-      });
-      begun += began;
-      begun_n_[i] += began;
-      if (c.delta > 0.0) {
-        touching_[i] = 1;
-        wall_loads_.add(static_cast<std::size_t>(e.w), anchors_[e.w], c.point, -h * c.force);
-      }
+    const int T = threads_for(soft_.size());
+    const std::uint32_t rows = static_cast<std::uint32_t>(pairs_.rows());
+    rlo_.assign(static_cast<std::size_t>(T) + 1, rows);
+    rlo_[0] = 0;
+    for (int t = 1; t < T; ++t) {
+      const std::uint32_t target = static_cast<std::uint32_t>(pairs_.size() * static_cast<std::size_t>(t) / T);
+      rlo_[t] = static_cast<std::uint32_t>(std::lower_bound(pairs_.off.begin(), pairs_.off.begin() + rows, target) -
+                                           pairs_.off.begin());
     }
-    hstats_soft_begun_ += begun;
-    virial_ += pol.vir * h;  // impulse times distance over the substep, as the hard collisions
+    if (T > 1) {
+      for (int t = 0; t < T; ++t)
+        for (std::uint32_t r = rlo_[t]; r < rlo_[t + 1]; ++r) {
+          std::uint8_t& o = own_[pairs_.owner[r]];
+          o = (o == kUnowned || o == t) ? static_cast<std::uint8_t>(t) : kMulti;
+        }
+    }
+    std::array<std::uint64_t, kMaxThreads> begun{};
+    std::array<double, kMaxThreads> vir{};
+    auto body = [&](int th) {
+      SoftPolicy<Rot, Periodic> pol{ctab_.data(), pairs_.c.data(), touching_.data(), near_.data(), mode_.data(),
+                                    fz_lost_.data(), skin_, rest_, onset_ok, asleep_ > 0};
+      pol.BEGUN = begun_n_.data();
+      pol.tid = static_cast<std::uint8_t>(th);
+      if (T > 1) {
+        pol.OWN = own_.data();
+        spill_[th].clear();
+        pol.spill = &spill_[th];
+      }
+      soft::pair_rows<D, Law, Rot, Roll>(soft::Records<D, Hot<D>>{hot_.data()},
+                                         soft::bodies_of(vh_, acc_, f_, wh_, alpha_, tq_),
+                                         pairs_.as_rows(shifts_.data()), rlo_[th], rlo_[th + 1], h, pol);
+      std::uint64_t b = pol.begun;
+      const Spin<D> no_spin = Spin<D>::Zero();
+      Spin<D> tq_none = Spin<D>::Zero();
+      WallLoads<D>& loads = th == 0 ? wall_loads_ : loads_t_[th];
+      for (auto& e : we_) {
+        const int i = e.i;
+        if (T > 1 && own_[i] != th && !(th == 0 && own_[i] >= T)) continue;
+        bool began = false;
+        const soft::WallContact<D> c = walls_.with_wall(e.w, e.f, [&](const auto& shape) {
+          return soft::wall_contact<D, Law, Rot, Roll>(shape, wall_t_, h, onset_ok, hot_[i].x, hot_[i].R, vh_[i],
+                                                       acc_[i], Rot ? wh_[i] : no_spin, Rot ? alpha_[i] : no_spin,
+                                                       ctab_[e.c], e.touch, e.xi, began, f_[i],
+                                                       Rot ? tq_[i] : tq_none, wall_mr(e));
+        });
+        if (began) {
+          ++b;
+          bump(begun_n_[i]);
+        }
+        if (c.delta > 0.0) {
+          flag(touching_[i]);
+          loads.add(static_cast<std::size_t>(e.w), anchors_[e.w], c.point, -h * c.force);
+        }
+      }
+      begun[th] = b;
+      vir[th] = pol.vir;
+    };
+    parallel(T, body);
+    std::uint64_t b = 0;
+    double v = 0.0;
+    for (int t = 0; t < T; ++t) {
+      b += begun[t];
+      v += vir[t];
+    }
+    if (T > 1) {
+      for (int t = 0; t < T; ++t) {
+        for (const Spill& sp : spill_[t]) {
+          f_[sp.j] += sp.f;
+          if constexpr (Rot) tq_[sp.j] += sp.t;
+        }
+        if (t > 0) {
+          wall_loads_.add(loads_t_[t]);
+          loads_t_[t].clear();
+        }
+      }
+      for (std::uint32_t r = 0; r < rows; ++r) own_[pairs_.owner[r]] = kUnowned;
+    }
+    hstats_soft_begun_ += b;
+    virial_ += v * h;  // impulse times distance over the substep, as the hard collisions
   }
 
   // Elastic energy stored in the soft contacts (engine/tdm/tdm.cpp sample()).
@@ -1610,7 +1838,7 @@ class HybridEngine final : public edm::EdmCore<D, CalendarQueue, HybridEngine<D>
     for (const auto f : pairs_.touch) t.contacts += f;
     for (const auto& e : we_) t.contacts += e.touch;
     t.contacts += pe_sleep_.size() + we_sleep_.size();
-    t.threads = 1;
+    t.threads = threads_used_;  // the most the soft set used (threads_for: fewer while it is small)
   }
 
   // Checkpoints (engine/state_archive.hpp): the core's state, then everything of the soft set,
@@ -1756,6 +1984,18 @@ class HybridEngine final : public edm::EdmCore<D, CalendarQueue, HybridEngine<D>
   std::vector<int> fz_contacts_;
   std::vector<int> watched_;
   std::vector<std::uint8_t> fz_cand_, fz_lost_, watch_flag_;
+  // Threads (threads_for): the count asked for; the force loop's row ranges, particle owners and
+  // spills, the other threads' wall loads; the drift's and the full step's per-thread lists.
+  int T_req_ = 1, threads_used_ = 1;
+  std::size_t min_per_thread_ = 2048;
+  std::vector<std::uint32_t> rlo_;
+  std::vector<std::uint8_t> own_;
+  std::vector<std::vector<Spill>> spill_;
+  std::vector<WallLoads<D>> loads_t_;
+  std::vector<std::vector<int>> t_relocate_, t_freed_;
+  std::vector<std::vector<std::pair<int, int>>> t_leaving_;
+  std::vector<RowBuild> rb_;     // the threads' rows of a list build
+  std::vector<int> watch_new_;   // sleepers next to the rows of a list build
 
 };
 

@@ -115,7 +115,9 @@ template <int D, NormalLaw Law>
 //   void virial(F, dx);  void row_done(i);
 //   static constexpr bool kOwners (row r is particle owner[r]; otherwise particle r), kShifts (some
 //   axis is periodic: add the entries' image shifts), kSparseRows (short rows: the owner's force is
-//   added per contact instead of once per row).
+//   added per contact instead of once per row, through own_force(f, i, F) and own_torque(tq, i, T),
+//   so that a threaded caller may divert it: the hybrid's rows of one particle may lie in two
+//   threads' ranges).
 template <int D, NormalLaw Law, bool Rot, bool Roll, class Pos, class Policy>
 [[gnu::always_inline]] inline void pair_rows(const Pos P, const Bodies<D>& b, const PairRows<D>& L, std::uint32_t r0,
                                              std::uint32_t r1, double h, Policy& pol) {
@@ -230,28 +232,28 @@ template <int D, NormalLaw Law, bool Rot, bool Roll, class Pos, class Policy>
           const Vec<D> ft = -kt * XI[e];
           Fel = elastic_normal_force<Law>(c, delta) * n + ft;
           const Spin<D> mel = lever_moment<D>(n, ft);
-          if constexpr (Policy::kSparseRows) TQ[i] -= li * (sleep_i ? mel : m);
+          if constexpr (Policy::kSparseRows) pol.own_torque(TQ, i, Spin<D>(-(li * (sleep_i ? mel : m))));
           else ti -= li * (sleep_i ? mel : m);
           tj = -lj * (sleep_j ? mel : m);
         } else {
-          if constexpr (Policy::kSparseRows) TQ[i] -= li * m;
+          if constexpr (Policy::kSparseRows) pol.own_torque(TQ, i, Spin<D>(-(li * m)));
           else ti -= li * m;
           tj = -lj * m;
         }
         if (Roll && c.rolling != RollingModel::None) {  // rolling resistance: -M on j
           const Spin<D> M = rolling_step<D, Law>(c, delta, cf.normal, n, whi, wpi, WH[j], AL[j], h, onset, fresh,
                                                  MR ? &MR[e] : nullptr);
-          if constexpr (Policy::kSparseRows) TQ[i] += M;
+          if constexpr (Policy::kSparseRows) pol.own_torque(TQ, i, M);
           else ti += M;
           tj -= M;
         }
       }
       if constexpr (Policy::kSleepers) {
-        if constexpr (Policy::kSparseRows) FF[i] += sleep_i ? Fel : F;
+        if constexpr (Policy::kSparseRows) pol.own_force(FF, i, sleep_i ? Fel : F);
         else fi += sleep_i ? Fel : F;
         pol.partner(FF, TQ, j, sleep_j ? Fel : F, tj);
       } else {
-        if constexpr (Policy::kSparseRows) FF[i] += F;
+        if constexpr (Policy::kSparseRows) pol.own_force(FF, i, F);
         else fi += F;
         pol.partner(FF, TQ, j, F, tj);
       }

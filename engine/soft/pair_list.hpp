@@ -71,6 +71,19 @@ class PairList {
     end_row();
   }
 
+  // Appends the rows of o (a list built apart, e.g. by another thread) after these.
+  void append(const PairList& o) {
+    const std::uint32_t base = static_cast<std::uint32_t>(nb.size());
+    owner.insert(owner.end(), o.owner.begin(), o.owner.end());
+    for (std::size_t r = 1; r < o.off.size(); ++r) off.push_back(base + o.off[r]);
+    nb.insert(nb.end(), o.nb.begin(), o.nb.end());
+    c.insert(c.end(), o.c.begin(), o.c.end());
+    sh.insert(sh.end(), o.sh.begin(), o.sh.end());
+    touch.insert(touch.end(), o.touch.begin(), o.touch.end());
+    xi.insert(xi.end(), o.xi.begin(), o.xi.end());
+    if (rolling_) mr.insert(mr.end(), o.mr.begin(), o.mr.end());
+  }
+
   PairEntry<D> entry(std::size_t r, std::size_t e) const {
     return {owner[r], nb[e], c[e], sh[e], touch[e], xi[e], rolling_ ? mr[e] : Spin<D>(Spin<D>::Zero())};
   }

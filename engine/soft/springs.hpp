@@ -32,9 +32,11 @@ class SpringMemory {
     auto by_key = [](const Entry& p, const Entry& q) { return p.key < q.key; };
     std::sort(pairs_.begin(), pairs_.end(), by_key);
     std::sort(walls_.begin(), walls_.end(), by_key);
+    index(pairs_, pair_at_);
+    index(walls_, wall_at_);
   }
   bool empty() const { return pairs_.empty() && walls_.empty(); }
-  // Checkpoints (engine/state_archive.hpp).
+  // Checkpoints (engine/state_archive.hpp). (The index is made again by sort(), before any recall.)
   template <class A>
   void archive(A& a) {
     a(pairs_);
@@ -42,14 +44,14 @@ class SpringMemory {
   }
   // Whether the pair (a, b) was touching; then xi (and *mr) = its springs oriented for a.
   bool recall_pair(std::uint32_t a, std::uint32_t b, Vec<D>& xi, Spin<D>* mr = nullptr) const {
-    const Entry* e = find(pairs_, a < b ? key(a, b) : key(b, a));
+    const Entry* e = find(pairs_, pair_at_, a < b ? key(a, b) : key(b, a));
     if (!e) return false;
     xi = a < b ? e->xi : Vec<D>(-e->xi);
     if (mr) *mr = a < b ? e->mr : Spin<D>(-e->mr);
     return true;
   }
   bool recall_wall(std::uint32_t i, std::uint32_t w, Vec<D>& xi, Spin<D>* mr = nullptr) const {
-    const Entry* e = find(walls_, key(i, w));
+    const Entry* e = find(walls_, wall_at_, key(i, w));
     if (!e) return false;
     xi = e->xi;
     if (mr) *mr = e->mr;
@@ -64,11 +66,38 @@ class SpringMemory {
     Vec<D> xi;
     Spin<D> mr;
   };
-  static const Entry* find(const std::vector<Entry>& v, std::uint64_t k) {
-    auto it = std::lower_bound(v.begin(), v.end(), k, [](const Entry& p, std::uint64_t q) { return p.key < q; });
-    return (it != v.end() && it->key == k) ? &*it : nullptr;
+  // Where the entries of each lower id begin in the sorted entries: a lookup scans the few entries
+  // of its lower id (a grain's contacts) instead of searching the whole list. Indexed by id; a
+  // generation stamp marks the ids of the current build, so the index is never cleared.
+  struct Index {
+    std::vector<std::uint32_t> start, stamp;
+    std::uint32_t gen = 0;
+  };
+  static void index(const std::vector<Entry>& v, Index& at) {
+    if (++at.gen == 0) {  // the stamps wrapped: start afresh
+      at.stamp.assign(at.stamp.size(), 0);
+      at.gen = 1;
+    }
+    for (std::size_t p = 0; p < v.size(); ++p) {
+      const std::uint64_t a = v[p].key >> 32;
+      if (p > 0 && v[p - 1].key >> 32 == a) continue;
+      if (a >= at.stamp.size()) {
+        at.stamp.resize(a + 1, 0);
+        at.start.resize(a + 1, 0);
+      }
+      at.stamp[a] = at.gen;
+      at.start[a] = static_cast<std::uint32_t>(p);
+    }
+  }
+  static const Entry* find(const std::vector<Entry>& v, const Index& at, std::uint64_t k) {
+    const std::uint64_t a = k >> 32;
+    if (a >= at.stamp.size() || at.stamp[a] != at.gen) return nullptr;
+    for (std::size_t p = at.start[a]; p < v.size() && v[p].key <= k; ++p)
+      if (v[p].key == k) return &v[p];
+    return nullptr;
   }
   std::vector<Entry> pairs_, walls_;
+  Index pair_at_, wall_at_;
 };
 
 }  // namespace matep::soft

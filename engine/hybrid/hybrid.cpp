@@ -1849,6 +1849,8 @@ class HybridEngine final : public edm::EdmCore<D, CalendarQueue, HybridEngine<D>
     Base::archive_core(a);
     a.tag("hybrid.clock");
     a.check(h_, "the substep");
+    a.check(T_req_, "threads");  // the force sums' order (a run is deterministic for a given count)
+    a(threads_used_);
     a(build_t_);
     a(clock_);
     a(clock_t0_);

@@ -202,7 +202,7 @@ TEST(CheckpointCli, AnotherSceneVersionMethodOrACorruptFileIsRefusedNamingWhatDi
   std::string v9 = bytes;
   v9[8] = 9;
   expect_refused("run " + scene + " --set run.end_time=0.5" + resume + write("v9.bin", v9), d,
-                 "checkpoint version 9, this matep reads version 2");
+                 "checkpoint version 9, this matep reads version 3");
   expect_refused("run " + scene + " --set run.end_time=0.5" + resume + write("other.bin", "id,x,y\n"), d,
                  "not a matep checkpoint");
   expect_refused("run " + scene + " --set run.end_time=0.5" + resume + (root / "absent.bin").string(), d, "no such file");

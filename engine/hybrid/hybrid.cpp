@@ -1406,19 +1406,26 @@ class HybridEngine final : public edm::EdmCore<D, CalendarQueue, HybridEngine<D>
     const bool onset_ok = wall_t_ > 0.0;
     const int T = threads_for(soft_.size());
     const std::uint32_t rows = static_cast<std::uint32_t>(pairs_.rows());
-    rlo_.assign(static_cast<std::size_t>(T) + 1, rows);
-    rlo_[0] = 0;
-    for (int t = 1; t < T; ++t) {
-      const std::uint32_t target = static_cast<std::uint32_t>(pairs_.size() * static_cast<std::size_t>(t) / T);
-      rlo_[t] = static_cast<std::uint32_t>(std::lower_bound(pairs_.off.begin(), pairs_.off.begin() + rows, target) -
-                                           pairs_.off.begin());
-    }
-    if (T > 1) {
-      for (int t = 0; t < T; ++t)
-        for (std::uint32_t r = rlo_[t]; r < rlo_[t + 1]; ++r) {
-          std::uint8_t& o = own_[pairs_.owner[r]];
-          o = (o == kUnowned || o == t) ? static_cast<std::uint8_t>(t) : kMulti;
-        }
+    // The split and the owners, made again when the rows or the thread count changed.
+    if (T != split_T_ || pairs_.layout() != split_layout_) {
+      split_T_ = T;
+      split_layout_ = pairs_.layout();
+      rlo_.assign(static_cast<std::size_t>(T) + 1, rows);
+      rlo_[0] = 0;
+      for (int t = 1; t < T; ++t) {
+        const std::uint32_t target = static_cast<std::uint32_t>(pairs_.size() * static_cast<std::size_t>(t) / T);
+        rlo_[t] = static_cast<std::uint32_t>(std::lower_bound(pairs_.off.begin(), pairs_.off.begin() + rows, target) -
+                                             pairs_.off.begin());
+      }
+      for (const std::uint32_t k : own_set_) own_[k] = kUnowned;
+      own_set_.clear();
+      if (T > 1)
+        for (int t = 0; t < T; ++t)
+          for (std::uint32_t r = rlo_[t]; r < rlo_[t + 1]; ++r) {
+            std::uint8_t& o = own_[pairs_.owner[r]];
+            if (o == kUnowned) own_set_.push_back(pairs_.owner[r]);
+            o = (o == kUnowned || o == t) ? static_cast<std::uint8_t>(t) : kMulti;
+          }
     }
     std::array<std::uint64_t, kMaxThreads> begun{};
     std::array<double, kMaxThreads> vir{};
@@ -1479,7 +1486,6 @@ class HybridEngine final : public edm::EdmCore<D, CalendarQueue, HybridEngine<D>
           loads_t_[t].clear();
         }
       }
-      for (std::uint32_t r = 0; r < rows; ++r) own_[pairs_.owner[r]] = kUnowned;
     }
     hstats_soft_begun_ += b;
     virial_ += v * h;  // impulse times distance over the substep, as the hard collisions
@@ -1992,6 +1998,9 @@ class HybridEngine final : public edm::EdmCore<D, CalendarQueue, HybridEngine<D>
   std::size_t min_per_thread_ = 2048;
   std::vector<std::uint32_t> rlo_;
   std::vector<std::uint8_t> own_;
+  std::vector<std::uint32_t> own_set_;  // the particles own_ names an owner for
+  int split_T_ = 0;                     // rlo_ and own_ are for this thread count ...
+  std::uint64_t split_layout_ = ~std::uint64_t{0};  // ... and this layout of the rows
   std::vector<std::vector<Spill>> spill_;
   std::vector<WallLoads<D>> loads_t_;
   std::vector<std::vector<int>> t_relocate_, t_freed_;

@@ -37,6 +37,7 @@ class PairList {
   void set_rolling(bool on) { rolling_ = on; }
 
   void clear() {
+    ++layout_;
     owner.clear();
     off.assign(1, 0);
     nb.clear();
@@ -47,6 +48,9 @@ class PairList {
     mr.clear();
   }
   std::size_t rows() const { return owner.size(); }
+  // Changes whenever rows are added or removed (a caller may keep what it derived from the rows,
+  // such as the hybrid's thread owners, until then).
+  std::uint64_t layout() const { return layout_; }
   std::size_t size() const { return nb.size(); }
 
   // Entries are added to the open row of `i` (a row with no entries is dropped by end_row).
@@ -61,6 +65,7 @@ class PairList {
   }
   void end_row() {
     if (nb.size() == off.back()) return;
+    ++layout_;
     owner.push_back(open_);
     off.push_back(static_cast<std::uint32_t>(nb.size()));
   }
@@ -73,6 +78,7 @@ class PairList {
 
   // Appends the rows of o (a list built apart, e.g. by another thread) after these.
   void append(const PairList& o) {
+    ++layout_;
     const std::uint32_t base = static_cast<std::uint32_t>(nb.size());
     owner.insert(owner.end(), o.owner.begin(), o.owner.end());
     for (std::size_t r = 1; r < o.off.size(); ++r) off.push_back(base + o.off[r]);
@@ -97,6 +103,7 @@ class PairList {
   // Keeps the entries for which keep(entry) is true, in order; rows left empty are dropped.
   template <class Keep>
   void filter(Keep&& keep) {
+    ++layout_;
     std::size_t w = 0, rw = 0;
     std::size_t begin = 0;
     for (std::size_t r = 0; r < rows(); ++r) {
@@ -151,6 +158,7 @@ class PairList {
  private:
   std::uint32_t open_ = 0;
   bool rolling_ = false;
+  std::uint64_t layout_ = 0;
 };
 
 }  // namespace matep::soft

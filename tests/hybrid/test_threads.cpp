@@ -1,13 +1,14 @@
 // The hybrid's soft set on several threads (engine/hybrid/hybrid.cpp threads_for): the same
 // trajectory as one thread up to round-off, bit-identical between runs with the same count, and
-// conservation. Two systems large enough to be split (2 x 2048 awake soft grains): a compressed
-// dense soft gas (periodic, frictionless) and a frictional bed on a floor and between side walls
+// conservation. Three systems large enough to be split (2 x 2048 awake soft grains): a compressed
+// dense soft gas of spheres and one of disks (periodic, frictionless) and a frictional bed on a floor and between side walls
 // whose grains fall asleep (rest rule; the soft set split down to 256 awake grains), which exercises the walls' owners, the sleepers' forces and
 // the rows that the wakes append.
 #include <gtest/gtest.h>
 
 #include <algorithm>
 #include <cmath>
+#include <numbers>
 
 #include "engine/hybrid.hpp"
 #include "tests/support/systems.hpp"
@@ -15,11 +16,13 @@
 namespace matep {
 namespace {
 
-// 16^3 unit spheres on a simple cubic lattice of spacing 0.99 d (every grain overlaps its six
-// neighbours by 0.01 d, so all start soft) at T = 1, linear spring-dashpot k = 9e4, e = 0.9.
-System<3> dense_soft_gas() {
-  const double phi = (std::numbers::pi / 6.0) / (0.99 * 0.99 * 0.99);
-  System<3> s = test::lattice_gas<3>(16, phi, 1.0, 0.9, 11);
+// 16^3 unit spheres (64^2 disks) on a simple cubic (square) lattice of spacing 0.99 d (every
+// grain overlaps its neighbours by 0.01 d, so all start soft) at T = 1, linear spring-dashpot
+// k = 9e4, e = 0.9.
+template <int D>
+System<D> dense_soft_gas() {
+  const double phi = ball_volume<D>(0.5) / std::pow(0.99, D);
+  System<D> s = test::lattice_gas<D>(D == 3 ? 16 : 64, phi, 1.0, 0.9, 11);
   s.materials[0].contact = "linear";
   s.materials[0].stiffness = 9.0e4;
   return s;
@@ -60,36 +63,39 @@ System<3> frictional_bed() {
   return s;
 }
 
-double max_position_difference(const RunResult<3>& a, const RunResult<3>& b) {
+template <int D>
+double max_position_difference(const RunResult<D>& a, const RunResult<D>& b) {
   double dx = 0.0;
   for (std::size_t i = 0; i < a.x.size(); ++i) dx = std::max(dx, (a.x[i] - b.x[i]).norm());
   return dx;
 }
-double max_velocity_difference(const RunResult<3>& a, const RunResult<3>& b) {
+template <int D>
+double max_velocity_difference(const RunResult<D>& a, const RunResult<D>& b) {
   double dv = 0.0;
   for (std::size_t i = 0; i < a.v.size(); ++i) dv = std::max(dv, (a.v[i] - b.v[i]).norm());
   return dv;
 }
-
-bool identical(const RunResult<3>& a, const RunResult<3>& b) {
+template <int D>
+bool identical(const RunResult<D>& a, const RunResult<D>& b) {
   for (std::size_t i = 0; i < a.x.size(); ++i)
     if (a.x[i] != b.x[i] || a.v[i] != b.v[i]) return false;
   return true;
 }
 
-TEST(HybridThreads, DenseSoftGasSameTrajectoryOnTwoThreads) {
-  const System<3> sys = dense_soft_gas();
+template <int D>
+void dense_gas_on_two_threads() {
+  const System<D> sys = dense_soft_gas<D>();
   HybridSettings hs;
   hs.cost_ratio = 1e9;  // releases off: the whole gas stays soft
   hs.hysteresis = 1e9;
-  const SoftPlan plan = hybrid_preflight<3>(sys, hs);
+  const SoftPlan plan = hybrid_preflight<D>(sys, hs);
   EdmSettings es;
   es.end_time = 400 * plan.default_dt;
   hs.threads = 1;
-  const RunResult<3> one = run_hybrid<3>(sys, es, hs);
+  const RunResult<D> one = run_hybrid<D>(sys, es, hs);
   hs.threads = 2;
-  const RunResult<3> two = run_hybrid<3>(sys, es, hs);
-  const RunResult<3> again = run_hybrid<3>(sys, es, hs);
+  const RunResult<D> two = run_hybrid<D>(sys, es, hs);
+  const RunResult<D> again = run_hybrid<D>(sys, es, hs);
   ASSERT_EQ(one.status, "ok");
   ASSERT_EQ(two.status, "ok");
   EXPECT_EQ(one.soft.threads, 1);
@@ -102,7 +108,7 @@ TEST(HybridThreads, DenseSoftGasSameTrajectoryOnTwoThreads) {
   EXPECT_LT(max_velocity_difference(one, two), 1e-9);  // speeds ~ 1
   EXPECT_TRUE(identical(two, again));  // deterministic for a given thread count
   // Momentum: zero at the start, conserved by the pair forces (spilled or not) to round-off.
-  Vec<3> p = Vec<3>::Zero();
+  Vec<D> p = Vec<D>::Zero();
   double vmax = 0.0;
   for (const auto& v : two.v) {
     p += v;
@@ -110,6 +116,9 @@ TEST(HybridThreads, DenseSoftGasSameTrajectoryOnTwoThreads) {
   }
   EXPECT_LT(p.norm(), 1e-9 * vmax * 4096);
 }
+
+TEST(HybridThreads, DenseSoftGasSameTrajectoryOnTwoThreads) { dense_gas_on_two_threads<3>(); }
+TEST(HybridThreads, DenseSoftDiskGasSameTrajectoryOnTwoThreads) { dense_gas_on_two_threads<2>(); }
 
 TEST(HybridThreads, FrictionalBedWithWallsAndSleepers) {
   const System<3> sys = frictional_bed();

@@ -46,6 +46,34 @@ double bed_height(const RunResult<3>& r) {
   return 2.0 * z / static_cast<double>(r.x.size());
 }
 
+// A periodic cube of side L holding 32 768 unit-mass spheres of unit diameter on a lattice at T = 1,
+// as a hybrid scene: `law` is the material's contact lines, `extra` further tables.
+std::string lattice_gas_scene(double end_time, int seed, double L, double e, const std::string& law,
+                              const std::string& extra) {
+  return fmt::format(R"(
+[run]
+dimension = 3
+method = "hybrid"
+end_time = {}
+seed = {}
+[domain]
+lower = [0.0, 0.0, 0.0]
+upper = [{}, {}, {}]
+periodic = [true, true, true]
+[material.g]
+density = 1.909859317102744
+restitution = {}
+{}
+[particles.a]
+material = "g"
+radius = 0.5
+count = 32768
+arrangement = "lattice"
+temperature = 1.0
+{})",
+                     end_time, seed, L, L, L, e, law, extra);
+}
+
 // The soft set alone: a 32^3 simple-cubic lattice of unit spheres compressed to a spacing of 0.99 d
 // (packing fraction 0.534; every grain overlaps its six neighbours by 0.01 d, so all start soft)
 // with Maxwellian velocities at T = 1, linear spring-dashpot (k = 9e4, e = 0.9, no friction, the
@@ -54,31 +82,8 @@ double bed_height(const RunResult<3>& r) {
 // of the whole run (list builds included), medians of alternated runs: TDM 1 thread, hybrid 1
 // thread, TDM T threads, hybrid T threads.
 void soft_set(int repeats, int threads, double steps, bool verbose) {
-  const std::string text = R"(
-[run]
-dimension = 3
-method = "hybrid"
-end_time = 1.0
-seed = 5
-[domain]
-lower = [0.0, 0.0, 0.0]
-upper = [32.0, 32.0, 32.0]
-periodic = [true, true, true]
-[material.g]
-density = 1.909859317102744
-restitution = 0.9
-contact = "linear"
-stiffness = 9.0e4
-[particles.a]
-material = "g"
-radius = 0.5
-count = 32768
-arrangement = "lattice"
-temperature = 1.0
-[hybrid]
-cost_ratio = 1.0e9
-hysteresis = 1.0e9
-)";
+  const std::string text = lattice_gas_scene(1.0, 5, 32.0, 0.9, "contact = \"linear\"\nstiffness = 9.0e4",
+                                              "[hybrid]\ncost_ratio = 1.0e9\nhysteresis = 1.0e9");
   const Scene scene = load_scene_string(text, "dense_soft_gas", "");
   System<3> sys = std::get<System<3>>(scene.system);
   const double s = 0.99;
@@ -138,29 +143,8 @@ int main(int argc, char** argv) {
   fmt::print("| case | baseline | baseline s | hybrid s | hybrid / baseline | switches to soft | check |\n");
   fmt::print("|---|---|---:|---:|---:|---:|---|\n");
   if (only.empty() || only == "gas") {
-    const std::string text = R"(
-[run]
-dimension = 3
-method = "hybrid"
-end_time = 20.0
-seed = 9
-[domain]
-lower = [0.0, 0.0, 0.0]
-upper = [65.0, 65.0, 65.0]
-periodic = [true, true, true]
-[material.g]
-density = 1.909859317102744
-restitution = 0.95
-contact = "hertz"
-young = 1.0e7
-poisson = 0.3
-[particles.a]
-material = "g"
-radius = 0.5
-count = 32768
-arrangement = "lattice"
-temperature = 1.0
-)";
+    const std::string text =
+        lattice_gas_scene(20.0, 9, 65.0, 0.95, "contact = \"hertz\"\nyoung = 1.0e7\npoisson = 0.3", "");
     const Scene scene = load_scene_string(text, "dilute_gas", "");
     const auto& sys = std::get<System<3>>(scene.system);
     EdmSettings es;

@@ -4,6 +4,7 @@ at several settings of its stability rule; wall time against error from an analy
 
     /usr/bin/python3 tools/bench_accuracy.py ball --matep build/matep --out charts/
     /usr/bin/python3 tools/bench_accuracy.py gas  --matep build/matep --out charts/
+    /usr/bin/python3 tools/bench_accuracy.py pour --matep build/matep --out charts/
 
 writes charts/accuracy_CASE.csv (case, method, setting, wall_seconds, error, status, ...) and
 charts/accuracy_CASE.png (relative error against wall seconds, log-log). --quick runs tiny
@@ -28,6 +29,15 @@ Cases and their error measures (README: "Speed and accuracy"):
   EDM mean from the same four starts (the hard-sphere answer, free of Haff's mean-field error),
   and noise, the standard error of the seed mean (the statistical floor of both measures; the
   chart draws EDM's as a dashed line).
+* pour: cases/pour_settle.toml (2000 beads poured into a box and settled, Hertz-Mindlin with
+  friction, the hybrid's rest rule on) from 3 random placements (run.seed = 1..3) per point. The
+  observable is deterministic in the sense the gas's is not: the settled bed's mean height 2<z>
+  (twice the grains' mean centre height at t = 1.5 s), a macroscopic average whose scatter between
+  placements is about 0.1 %, while the methods and steps differ by more. Reference: TDM at the
+  finest step (t_c/200; the first TDM row, not plotted), its seed mean. error = |<2<z>> /
+  reference - 1|; noise = the standard error of the reference's seed mean, relative (the chart's
+  dashed line).
+  EDM cannot settle a bed: it ends in collapse (a row with that status).
 
 wall_seconds is summary.json's wall time (setup and outputs included): for the ball the median of
 --repeat runs (default 5) made without thermo rows (45 000 rows cost more than a coarse TDM run;
@@ -183,6 +193,47 @@ def gas_answer(case, runs):
 
 
 # ---------------------------------------------------------------------------------------------
+# The poured and settled bed
+
+
+def pour_case(quick: bool) -> dict:
+    scene = CASES / "pour_settle.toml"
+    sets = {"output.thermo_interval": 0.05}
+    if quick:  # 100 beads from a lower column (0.1-0.3 m), landed and mostly settled by 0.4 s
+        sets.update({"particles.beads.count": 100, "run.end_time": 0.4,
+                     "particles.beads.region.upper": [0.15, 0.15, 0.3]})
+    return {"name": "pour", "scene": scene, "sets": sets, "seeds": [1, 2] if quick else [1, 2, 3],
+            "reference": math.nan,  # TDM at the finest step, set by its row
+            "tdm": [50, 10] if quick else [200, 100, 50, 20, 10], "hybrid": [10] if quick else HYBRID_K,
+            "title": "pour and settle (2000 beads, Hertz-Mindlin, mu = 0.5, e = 0.5): bed height 2<z> "
+                     "vs TDM at the finest step",
+            "measure": pour_answer}
+
+
+def bed_height(run) -> float:
+    """Twice the mean centre height of the grains in final_state.csv."""
+    with open(Path(run.out_dir) / "final_state.csv", newline="") as f:
+        z = [float(r["z"]) for r in csv.DictReader(f)]
+    return 2.0 * statistics.fmean(z)
+
+
+def pour_answer(case, runs):
+    """(seed mean of 2<z>, its relative deviation from the reference, {noise}); the first TDM row
+    (the finest step) is the reference."""
+    if any(r.status != "ok" for r in runs):
+        return math.nan, math.nan, {}
+    h = [bed_height(r) for r in runs]
+    mean = statistics.fmean(h)
+    noise = statistics.stdev(h) / math.sqrt(len(h)) / mean if len(h) > 1 else math.nan
+    if case["_method"] == "tdm" and not math.isfinite(case["reference"]):
+        case["reference"] = mean
+        # the reference row: not plotted (its error is zero by construction); it carries the floor
+        return mean, math.nan, {"noise": noise, "message": "the reference"}
+    ref = case["reference"]
+    return mean, abs(mean / ref - 1.0) if math.isfinite(ref) else math.nan, {}
+
+
+# ---------------------------------------------------------------------------------------------
 
 
 def run_case(case, matep, work: Path, repeat: int, log) -> list[dict]:
@@ -211,6 +262,7 @@ def run_case(case, matep, work: Path, repeat: int, log) -> list[dict]:
         else:
             runs = [run_repeated(matep, case["scene"], sets, folder, repeat)]
         r = next((x for x in runs if x.status != "ok"), runs[0])  # the first failure speaks for the row
+        case["_method"] = method
         answer, error, extra = case["measure"](case, runs)
         row = {"case": case["name"], "method": method, "setting": setting, "wall_seconds": r.wall_seconds,
                "error": error, "status": r.status, "answer": answer, "reference": case["reference"],
@@ -271,9 +323,10 @@ def draw(ax, rows, field, ylabel, title, methods):
     ax.set_ylabel(ylabel)
     ax.set_title(title, fontsize=9)
     ax.grid(True, which="both", alpha=0.3)
-    edm = next((r for r in rows if r["method"] == "edm"), None)
-    if edm and math.isfinite(edm.get("noise", math.nan)):
-        ax.axhline(edm["noise"] * (math.sqrt(2.0) if field == "error_vs_edm" else 1.0), color="gray", ls="--", lw=1,
+    # The reference method's row carries the floor (the gas: EDM's; the pour: the finest TDM's).
+    ref = next((r for r in rows if math.isfinite(r.get("noise", math.nan))), None)
+    if ref:
+        ax.axhline(ref["noise"] * (math.sqrt(2.0) if field == "error_vs_edm" else 1.0), color="gray", ls="--", lw=1,
                    label="statistical floor (standard error of the seed mean)")
     ax.legend(fontsize=7.5, loc="upper center", bbox_to_anchor=(0.5, -0.13), ncol=2, frameon=False)
     return skipped
@@ -284,6 +337,12 @@ def plot(case, rows, png: Path):
     if case["name"] == "ball":
         fig, ax = plt.subplots(figsize=(8.0, 6.2))
         skipped = draw(ax, rows, "error", "relative error of the rest time", case["title"], STYLE)
+    elif case["name"] == "pour":
+        fig, ax = plt.subplots(figsize=(8.0, 6.2))
+        seeds = len(case["seeds"])
+        skipped = draw(ax, rows, "error", "|<2<z>> / reference - 1|", case["title"] +
+                       f"\n<2<z>>: mean of {seeds} random placements; reference: TDM at t_c/{case['tdm'][0]}",
+                       STYLE)
     else:
         fig, (ax, bx) = plt.subplots(1, 2, figsize=(13.0, 6.2))
         seeds = len(case["seeds"])
@@ -307,7 +366,7 @@ def plot(case, rows, png: Path):
 
 def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    ap.add_argument("case", choices=["ball", "gas"])
+    ap.add_argument("case", choices=["ball", "gas", "pour"])
     ap.add_argument("--matep", default="build/matep", help="the matep executable (default build/matep)")
     ap.add_argument("--out", default="charts", help="folder for accuracy_CASE.csv and .png (default charts/)")
     ap.add_argument("--quick", action="store_true", help="tiny versions, a few seconds (the test suite's mode)")
@@ -316,7 +375,7 @@ def main(argv=None):
     ap.add_argument("--work", default=None, help="keep the runs' outputs in this folder (default: a temporary one)")
     ap.add_argument("--plot-only", action="store_true", help="redraw the PNG from the CSV in --out, running nothing")
     args = ap.parse_args(argv)
-    case = (ball_case if args.case == "ball" else gas_case)(args.quick)
+    case = {"ball": ball_case, "gas": gas_case, "pour": pour_case}[args.case](args.quick)
     out = Path(args.out)
     csv_path, png_path = out / f"accuracy_{args.case}.csv", out / f"accuracy_{args.case}.png"
     if args.plot_only:

@@ -1,5 +1,5 @@
 #!/usr/bin/python3
-"""ctest for the chart tools: runs tools/bench_accuracy.py (both cases) or tools/stability_map.py
+"""ctest for the chart tools: runs tools/bench_accuracy.py (its three cases) or tools/stability_map.py
 in --quick mode from the command line, as a user would, and checks the CSV behind each chart:
 one row per method and setting (cell), finite wall time and error wherever a run was made, and
 rows marked "refused" only where the CLI really refuses (the hybrid method while it is not
@@ -91,6 +91,35 @@ def check_accuracy(matep, out, hybrid_refused):
         check_png(out / f"accuracy_{name}.png")
 
 
+def check_pour(matep, out, hybrid_refused):
+    """The pour's rows: EDM ends in collapse (it cannot settle a bed), the first TDM row is the
+    reference (no error, the noise floor), every other run has a finite error against it."""
+    run_tool([REPO / "tools/bench_accuracy.py", "pour", "--matep", matep, "--out", out, "--quick"])
+    case = bench_accuracy.pour_case(True)
+    rows = read_csv(out / "accuracy_pour.csv")
+    ref = f"t_c/{case['tdm'][0]}"
+    expected = [("edm", "exact")] + [("tdm", f"t_c/{n}") for n in case["tdm"]] + \
+               [("hybrid", f"k={k}") for k in case["hybrid"]]
+    for method, setting in expected:
+        got = [r for r in rows if (r["method"], r["setting"]) == (method, setting)]
+        if not expect(len(got) == 1, f"pour: {len(got)} rows for {method} {setting}, expected 1"):
+            continue
+        r = got[0]
+        err = num(r["error"])
+        if method == "edm":
+            expect(r["status"] == "collapse", f"pour: EDM should collapse in the settling bed: {r['status']}")
+        elif r["status"] == "refused":
+            expect(method == "hybrid" and hybrid_refused, f"pour: {method} {setting} refused: {r['message']}")
+        elif (method, setting) == ("tdm", ref):
+            expect(r["message"] == "the reference" and math.isfinite(num(r["noise"])) and num(r["answer"]) > 0,
+                   f"pour: the reference row: {r}")
+        else:
+            # a 100-bead bed from 2 placements: the methods agree on its height within 15 %
+            expect(r["status"] == "ok" and math.isfinite(err) and err < 0.15,
+                   f"pour: {method} {setting}: error {r['error']} ({r['status']})")
+    check_png(out / "accuracy_pour.png")
+
+
 def check_map(matep, out, hybrid_refused):
     run_tool([REPO / "tools/stability_map.py", "--matep", matep, "--out", out, "--quick"])
     rows = read_csv(out / "stability_map.csv")
@@ -135,7 +164,11 @@ def main():
     matep = Path(args.matep).resolve()
     hybrid_refused = hybrid_refusal(matep) is not None
     print(f"hybrid: {'refused by this matep' if hybrid_refused else 'available'}")
-    (check_accuracy if args.which == "accuracy" else check_map)(matep, out, hybrid_refused)
+    if args.which == "accuracy":
+        check_accuracy(matep, out, hybrid_refused)
+        check_pour(matep, out, hybrid_refused)
+    else:
+        check_map(matep, out, hybrid_refused)
     if failures:
         print("FAIL:\n  " + "\n  ".join(failures))
         return 1

@@ -282,6 +282,28 @@ TEST(CheckpointEngines, HybridCasesResumeBitForBit) {
   check_case("u_tube_2d.toml", {"run.end_time=0.15", "output.thermo_interval=0.005"}, 11);
 }
 
+// The small pour to t = 0.3 s with its soft set split on two threads (down to 100 awake grains a
+// thread): the derived split and owners are made again after a resume, and the run goes on bit
+// for bit.
+TEST(CheckpointEngines, HybridPourOnTwoThreadsResumesBitForBit) {
+  std::vector<std::string> over = kSmallPour;
+  over[0] = "run.end_time=0.3";
+  const Scene sc = load_scene(test::kCasesDir + "pour_settle.toml", over);
+  const auto& sys = std::get<System<3>>(sc.system);
+  HybridSettings hs = hybrid_settings(sc);
+  hs.threads = 2;
+  hs.min_per_thread = 100;
+  auto run = [&](const CheckpointHooks* h, std::atomic<bool>* stop, Observer<3>* obs) {
+    EdmSettings e = edm_set(sc.end_time, sc.output.thermo_interval);
+    e.checkpoint = h;
+    e.stop = stop;
+    return run_hybrid<3>(sys, e, hs, {obs});
+  };
+  Trace<3> probe;
+  EXPECT_EQ(run(nullptr, nullptr, &probe).soft.threads, 2);  // the soft set was split
+  check_resume<3>(run, 12, "hybrid pour, 2 threads");
+}
+
 // Checkpoints every interval in a pour: resumed mid-settling, the sleepers and springs carry on
 // (the same switches, no grain turned soft again "by overlap", the same final modes).
 TEST(CheckpointEngines, HybridPourResumedMidSettling) {

@@ -270,6 +270,12 @@ class HybridEngine final : public edm::EdmCore<D, CalendarQueue, HybridEngine<D>
 #pragma omp parallel num_threads(T)
     for (int t = omp_get_thread_num(); t < T; t += omp_get_num_threads()) body(t);
   }
+  // f(i) for the awake soft grains of thread th's part of the soft set (of T contiguous parts).
+  template <class F>
+  void for_soft_part(int th, int T, F&& f) const {
+    const std::size_t n = soft_.size();
+    for (std::size_t k = n * th / T, end = n * (th + 1) / T; k < end; ++k) f(soft_[k]);
+  }
   // Flags and counters another thread may set at the same time (relaxed atomics).
   static void flag(std::uint8_t& b) { std::atomic_ref<std::uint8_t>(b).store(1, std::memory_order_relaxed); }
   static void bump(std::uint32_t& c) { std::atomic_ref<std::uint32_t>(c).fetch_add(1, std::memory_order_relaxed); }
@@ -812,12 +818,11 @@ class HybridEngine final : public edm::EdmCore<D, CalendarQueue, HybridEngine<D>
       // Each thread builds the rows of a range of the soft set into its own lists; they are
       // appended in thread order (the same rows, in the same order, as one thread builds), their
       // contact-constant and rolling-torque indices shifted past the earlier threads'.
-      const std::size_t n = soft_.size();
       parallel(T, [&](int th) {
         RowBuild& b = rb_[th];
         b.clear(epsd_);
-        BuildSink out{b.pairs, b.walls, b.ctab, b.wmr, b.watch, b.feats};
-        for (std::size_t k = n * th / T, end = n * (th + 1) / T; k < end; ++k) build_row(soft_[k], t, mem, out);
+        BuildSink out = b.sink();
+        for_soft_part(th, T, [&](int i) { build_row(i, t, mem, out); });
       });
       for (int th = 0; th < T; ++th) {
         RowBuild& b = rb_[th];
@@ -858,6 +863,7 @@ class HybridEngine final : public edm::EdmCore<D, CalendarQueue, HybridEngine<D>
     std::vector<Spin<D>> wmr;
     std::vector<int> watch;
     std::vector<std::uint32_t> feats;
+    BuildSink sink() { return {pairs, walls, ctab, wmr, watch, feats}; }
     void clear(bool rolling) {
       pairs.clear();
       pairs.set_rolling(rolling);
@@ -1077,15 +1083,13 @@ class HybridEngine final : public edm::EdmCore<D, CalendarQueue, HybridEngine<D>
     // or entered an outlet; those are handled after, in soft-set order, as one thread would.)
     const int T = threads_for(soft_.size());
     std::array<std::uint8_t, kMaxThreads> moved{};
-    const std::size_t n = soft_.size();
     parallel(T, [&](int th) {
       bool dirty = false;
       std::vector<int>& reloc = t_relocate_[th];
       std::vector<std::pair<int, int>>& leave = t_leaving_[th];
       reloc.clear();
       leave.clear();
-      for (std::size_t k = n * th / T, end = n * (th + 1) / T; k < end; ++k) {
-        const int i = soft_[k];
+      for_soft_part(th, T, [&](int i) {
         dirty |= soft::kick_drift<D>(FF[i], AC[i], VH[i], HOT[i].x, X0[i], MINV[i], g, h, lim2);
         if (rot_) soft::kick_spin(tq_[i], alpha_[i], wh_[i], iinv_[i], h);
         HOT[i].t = t;
@@ -1093,13 +1097,13 @@ class HybridEngine final : public edm::EdmCore<D, CalendarQueue, HybridEngine<D>
         if (outlets) [[unlikely]] {
           if (const int o = sys_.outlet_at(x); o >= 0) {
             leave.emplace_back(i, o);
-            continue;
+            return;
           }
         }
         // Still inside the box of its cell (edge cells of closed axes: up to the escape limit;
         // NaN fails the test): no cell update.
         if (!((x.array() >= BLO[i].array()).all() && (x.array() < BHI[i].array()).all())) reloc.push_back(i);
-      }
+      });
       moved[th] = dirty;
     });
     for (int th = 0; th < T; ++th) {
@@ -1137,13 +1141,11 @@ class HybridEngine final : public edm::EdmCore<D, CalendarQueue, HybridEngine<D>
     freed_.clear();
     const int T5 = threads_for(soft_.size());
     std::array<double, kMaxThreads> vmax{};
-    const std::size_t n5 = soft_.size();
     parallel(T5, [&](int th) {
       double vm2 = 0.0;
       std::vector<int>& freed = t_freed_[th];
       freed.clear();
-      for (std::size_t k = n5 * th / T5, end = n5 * (th + 1) / T5; k < end; ++k) {
-        const int i = soft_[k];
+      for_soft_part(th, T5, [&](int i) {
         const Vec<D> v = soft::full_step<D>(VH5[i], F5[i], MINV[i], g, hdt);
         HOT[i].v = v;
         vm2 = std::max(vm2, v.squaredNorm());
@@ -1151,7 +1153,7 @@ class HybridEngine final : public edm::EdmCore<D, CalendarQueue, HybridEngine<D>
         if (TOUCHING[i]) LAST[i] = t;
         if (!TOUCHING[i] && !NEAR[i] && t - LAST[i] >= hyst) freed.push_back(i);
         TOUCHING[i] = NEAR[i] = 0;
-      }
+      });
       vmax[th] = vm2;
     });
     for (int th = 0; th < T5; ++th) {

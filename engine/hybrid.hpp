@@ -8,10 +8,11 @@
 //    resolved by the soft contact law, which starts within the substep as in a pure TDM run;
 //  * cost: the same when its smoothed interval between collisions falls below cost_ratio * dt
 //    (the crossover where TDM substeps are cheaper than EDM events);
-//  * capture: a hard particle within `skin` of a soft one joins the soft set at the next substep
-//    (the skin covers the largest relative approach in one substep, so no contact is missed);
-//  * release: a soft particle without contact for `hysteresis` and without a particle within the
-//    skin returns to EDM with its current velocity and spin;
+//  * capture: a hard particle joins the soft set at the next substep when its gap to a soft one
+//    falls below twice what the two can close in one substep at their current speeds (at least
+//    `skin`), so no contact is missed and a grain joins only just before it touches;
+//  * release: a soft particle without contact for `hysteresis` and without a particle within its
+//    capture distance returns to EDM with its current velocity and spin;
 //  * rest: a soft grain that stays slower than `rest_speed` for `rest_time` and whose contact
 //    springs balance gravity falls asleep on its own: it is not integrated, its contacts with
 //    sleepers are frozen with their springs, and awake neighbours meet it as an immovable body.
@@ -37,7 +38,7 @@ struct HybridSettings {
                             // brings a grain back to its earlier partner within L t_c turns soft
                             // before it (engine/hybrid/hybrid.cpp lookahead_pair); 0 = off
   double hysteresis = 0.0;  // contact-free time before release; 0 = 10 k t_c (of the plan's t_c)
-  double skin = 0.01;       // capture distance, as a fraction of the smallest diameter
+  double skin = 0.001;      // least capture distance, as a fraction of the smallest diameter
   double cost_ratio = 10.0; // cost of one EDM collision per particle / cost of one TDM particle-step
   double rest_speed = 0.0;  // sleeping threshold [m/s]; 0 = no sleeping
   double rest_time = 0.0;   // how long a grain must stay below rest_speed; 0 = 20 t_c

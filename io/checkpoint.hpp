@@ -20,7 +20,7 @@
 namespace matep {
 
 inline constexpr char kCheckpointMagic[8] = {'M', 'A', 'T', 'E', 'P', 'C', 'K', 'P'};
-inline constexpr std::uint32_t kCheckpointVersion = 3;  // 2: an EDM particle holds its collapse watch; 3: the hybrid's threads
+inline constexpr std::uint32_t kCheckpointVersion = 4;  // 2: an EDM particle holds its collapse watch; 3: the hybrid's threads; 4: the switching rule's impact speeds
 inline constexpr const char* kCheckpointName = "checkpoint.bin";
 
 struct Checkpoint {

@@ -508,9 +508,9 @@ std::string describe(const Scene& scene, const System<D>& sys) {
     if (scene.method == Method::Hybrid) {
       const HybridSettings h = hybrid_settings(scene);
       s += fmt::format("hybrid rule  soft when {} collisions in a row each follow the previous one within {} t_c, when a\n"
-                       "             strongly inelastic one would send a grain back to its earlier partner within {} t_c, or when the\n"
-                       "             collision interval falls below {} substeps (cost); capture skin {} of the smallest\n"
-                       "             diameter; release after {:.6g} s without contact{}\n",
+                       "             strongly inelastic one would send a grain back to its earlier partner within {} t_c, or when a\n"
+                       "             grain and its neighbours collide more often than once per {} substeps (cost); capture just before the touch (at least\n"
+                       "             {} of the smallest diameter); release after {:.6g} s without contact{}\n",
                        h.repeats, h.stability, h.lookahead, h.cost_ratio, h.skin,
                        h.hysteresis > 0.0 ? h.hysteresis : 10.0 * h.stability * plan.contact_time,
                        h.rest_speed > 0.0 ? fmt::format("; quiet grains (speed < {} m/s) sleep", h.rest_speed)

@@ -47,8 +47,9 @@ double hybrid_substep(const SoftPlan& plan, const HybridSettings& hs) {
   return h;
 }
 
-// The hybrid's two skins: the capture skin (a hard particle this near a soft one joins the soft
-// set) and the soft list's skin, which also widens the EDM cells.
+// The hybrid's two skins: the least capture distance (a hard particle this near a soft one joins
+// the soft set; the capture distance grows with the speeds, HybridEngine::capture_gap) and the
+// soft list's skin, which also widens the EDM cells and bounds the capture distance.
 struct Skins {
   double capture = 0.0, list = 0.0;
 };
@@ -58,14 +59,11 @@ Skins hybrid_skins(const System<D>& sys, const SoftPlan& plan, const HybridSetti
   const double dmin = 2.0 * sys.radius_range().first;
   Skins s;
   s.capture = hs.skin * (dmin < kNever ? dmin : 0.0);
-  // The skin must cover the largest relative approach in one substep (two particles at the
-  // largest expected impact speed each): no contact can begin between two capture checks.
-  s.capture = std::max(s.capture, 4.0 * plan.impact_speed * h);
   // The Verlet list of the soft set takes the TDM engine's skin, 0.1 d (a wider one saved
   // rebuilds in the pour but widened the EDM cells, whose width is the list's cut-off: 10 %
-  // slower hard predictions in a gas); the capture skin is smaller (default 0.01 d): a capture
-  // skin of 0.1 d spread the soft set through every gas denser than phi ~ 0.2.
-  s.list = std::max(s.capture, kListSkin * dmin);
+  // slower hard predictions in a gas), and at least what two grains at the largest expected
+  // impact speed close in four substeps (the cells must reach every grain a capture may need).
+  s.list = std::max({s.capture, kListSkin * dmin, 4.0 * plan.impact_speed * h});
   return s;
 }
 
@@ -408,6 +406,19 @@ class HybridEngine final : public edm::EdmCore<D, CalendarQueue, HybridEngine<D>
     });
   }
 
+  // The capture distance of a hard grain moving at `speed` (the gap to a soft grain below which it
+  // joins the soft set): twice the most the gap can close in one substep (its speed and gravity's
+  // gain, and twice the fastest soft grain's speed: a soft grain may speed up inside the
+  // substep), so that the join comes a substep before the touch at the latest; at least
+  // hybrid.skin (round-off, and resting grains), at most the list skin (the cells' reach).
+  // A fixed capture skin made a dense gas sticky: at phi = 0.5 each grain has on average 0.7
+  // neighbours within 0.01 d, so a soft seed drew most of the gas in and held it there
+  // (charts/README.md, stability map).
+  double capture_gap(double speed) const {
+    const double close = h_ * (speed + g_.norm() * h_ + 2.0 * vsoft_max_);
+    return std::clamp(2.0 * close, skin_, lskin_);
+  }
+
   void start_clock(double t) {
     if (clock_) return;
     clock_ = true;
@@ -438,23 +449,56 @@ class HybridEngine final : public edm::EdmCore<D, CalendarQueue, HybridEngine<D>
   // of colliding.
   bool soft_rule_pair(int i, int j, double t) {
     if (mode_[j] == kFixed) return soft_rule_fixed(i, j, t);
+    Vec<D> r = hot_[i].x - hot_[j].x;
+    min_image(r);
+    const double u = std::abs((hot_[i].v - hot_[j].v).dot(r)) / r.norm();  // impact speed
     double tc = -1.0;  // t_c of this impact, computed once when needed
     const auto contact_time = [&] {
-      if (tc < 0.0) {
-        Vec<D> r = hot_[i].x - hot_[j].x;
-        min_image(r);
-        const double u = std::abs((hot_[i].v - hot_[j].v).dot(r)) / r.norm();
-        tc = contact_time_of(i, j, -1, u);
-      }
+      if (tc < 0.0) tc = contact_time_of(i, j, -1, u);
       return tc;
     };
     const double last_i = cold_[i].last, last_j = cold_[j].last;
-    const Switch v = switch_.pair(i, j, t, last_i, last_j, contact_time);
+    Switch v = switch_.pair(i, j, t, last_i, last_j, contact_time, u);
+    if (v == Switch::Cost && !region_cheaper_soft(i, j, t)) v = Switch::Stay;
     if (v == Switch::Stay) return lookahead_pair(i, j, t, std::max(last_i, last_j), contact_time);
     const std::uint8_t reason = v == Switch::Stability ? kByStability : kByCost;
     make_pending(i, t, reason);
     make_pending(j, t, reason);
     return true;
+  }
+
+  // The cost rule over a region: a grain that turns soft draws its hard neighbours in after it
+  // (they are captured when they next come close), so the switch pays off only if the region
+  // collides faster than the crossover. Turning i (and j: -1 for none) soft costs one soft
+  // particle-step per substep for each of them and each hard neighbour of their first
+  // coordination shell (centres closer than 1.5 (R_i + R_k)), and saves those grains' collisions:
+  // soft is cheaper when their mean smoothed collision rate (SwitchRule::rate) exceeds the
+  // crossover 1 / (cost_ratio h). Grains already soft are paid for either way and not counted.
+  // A rattler in a dense gas, whose own interval is short while its cage's is not, stays hard:
+  // the single-grain test turned such grains soft, and each drew about a hundred others into the
+  // soft set by capture (charts/README.md, stability map).
+  bool region_cheaper_soft(int i, int j, double t) {
+    region_.clear();
+    auto visit = [&](int c) {
+      const Hot<D>& hc = hot_[c];
+      const double dtc = t - hc.t;
+      const Vec<D> xc = hc.x + hc.v * dtc + (0.5 * dtc * dtc) * g_;
+      for_neighbours(c, [&](int k, const Vec<D>& shift) {
+        if (mode_[k] != kHard || k == i || k == j) return;
+        const Hot<D>& hk = hot_[k];
+        const double dtk = t - hk.t;
+        const double cut = 1.5 * (hc.R + hk.R);
+        if ((xc - hk.x - hk.v * dtk - (0.5 * dtk * dtk) * g_ - shift).squaredNorm() < cut * cut) region_.push_back(k);
+      });
+    };
+    visit(i);
+    if (j >= 0) visit(j);
+    std::sort(region_.begin(), region_.end());
+    region_.erase(std::unique(region_.begin(), region_.end()), region_.end());
+    double sum = switch_.rate(i) + (j >= 0 ? switch_.rate(j) : 0.0);
+    for (const int k : region_) sum += switch_.rate(k);
+    const double n = static_cast<double>(region_.size() + (j >= 0 ? 2 : 1));
+    return sum > n * switch_.crossover_rate();
   }
 
   // The lookahead of the stability rule (README "Hybrid dynamics"): a strongly inelastic collision
@@ -510,7 +554,9 @@ class HybridEngine final : public edm::EdmCore<D, CalendarQueue, HybridEngine<D>
     if (wall_checkpoint(i, wall, c)) return false;  // a checkpoint of the bracketing, not an impact
     const double un = (hot_[i].v - c.velocity).dot(c.normal);
     // Resting on the wall (no normal speed left) is the zero-time limit of a bouncing sequence.
-    const Switch v = switch_.wall(i, t, cold_[i].last, !(un < 0.0), [&] { return contact_time_of(i, -1, w, -un); });
+    Switch v = switch_.wall(i, t, cold_[i].last, !(un < 0.0), [&] { return contact_time_of(i, -1, w, -un); },
+                            std::max(-un, 0.0));
+    if (v == Switch::Cost && !region_cheaper_soft(i, -1, t)) v = Switch::Stay;
     if (v == Switch::Stay) return false;
     make_pending(i, t, v == Switch::Stability ? kByStability : kByCost);
     return true;
@@ -522,7 +568,9 @@ class HybridEngine final : public edm::EdmCore<D, CalendarQueue, HybridEngine<D>
     Vec<D> r = hot_[i].x - hot_[j].x;
     min_image(r);
     const double un = hot_[i].v.dot(r) / r.norm();
-    const Switch v = switch_.wall(i, t, cold_[i].last, !(un < 0.0), [&] { return contact_time_of(i, j, -1, -un); });
+    Switch v = switch_.wall(i, t, cold_[i].last, !(un < 0.0), [&] { return contact_time_of(i, j, -1, -un); },
+                            std::max(-un, 0.0));
+    if (v == Switch::Cost && !region_cheaper_soft(i, -1, t)) v = Switch::Stay;
     if (v == Switch::Stay) return false;
     make_pending(i, t, v == Switch::Stability ? kByStability : kByCost);
     return true;
@@ -666,7 +714,8 @@ class HybridEngine final : public edm::EdmCore<D, CalendarQueue, HybridEngine<D>
       if (!cand_[e.i] && !cand_[e.j]) return;
       Vec<D> dx = hot_[e.i].x - hot_[e.j].x;
       min_image(dx);
-      const double cut = hot_[e.i].R + hot_[e.j].R + skin_;
+      const double cut =
+          hot_[e.i].R + hot_[e.j].R + capture_gap(std::sqrt(std::max(hot_[e.i].v.squaredNorm(), hot_[e.j].v.squaredNorm())));
       if (dx.squaredNorm() >= cut * cut) return;
       if (cand_[e.i] && cand_[e.j]) {
         near_pairs_.push_back({e.i, e.j});
@@ -1230,11 +1279,13 @@ class HybridEngine final : public edm::EdmCore<D, CalendarQueue, HybridEngine<D>
       const Vec<D> xi = hi.x + hi.v * dt + (0.5 * dt * dt) * g_;
       bool any = false, in = false;
       double gmin = kNever;
+      const double vi = (hi.v + g_ * dt).norm();
+      const double reach = capture_gap(vi);
       for_neighbours(i, [&](int j, const Vec<D>& shift) {
         const std::uint8_t m = mode_[j];
         if (m != kSoft && m != kAsleep) return;
         any = true;
-        const double cut = hi.R + hot_[j].R + skin_;
+        const double cut = hi.R + hot_[j].R + reach;
         const double d2 = (xi - hot_[j].x - shift).squaredNorm();
         if (d2 < cut * cut) {
           in = true;
@@ -1251,7 +1302,7 @@ class HybridEngine final : public edm::EdmCore<D, CalendarQueue, HybridEngine<D>
         // soft particle's. At most kMaxSkip substeps; a collision of i or a soft particle moving
         // next to it brings the check forward (predict, mark_interface).
         const double span = kMaxSkip * h_;
-        const double vb = (hi.v + g_ * dt).norm() + g_.norm() * span + 2.0 * vsoft_max_;
+        const double vb = vi + g_.norm() * span + 2.0 * vsoft_max_;
         iface_next_[i] = vb > 0.0 ? t + std::min(span, gmin / vb) : t + span;
         iface_[keep++] = i;
       } else {
@@ -1430,10 +1481,12 @@ class HybridEngine final : public edm::EdmCore<D, CalendarQueue, HybridEngine<D>
           }
     }
     std::array<std::uint64_t, kMaxThreads> begun{};
+    // A soft grain is "near" another (the single release waits) within the capture distance.
+    const double near_skin = capture_gap(vsoft_max_);
     std::array<double, kMaxThreads> vir{};
     auto body = [&](int th) {
       SoftPolicy<Rot, Periodic> pol{ctab_.data(), pairs_.c.data(), touching_.data(), near_.data(), mode_.data(),
-                                    fz_lost_.data(), skin_, rest_, onset_ok, asleep_ > 0};
+                                    fz_lost_.data(), near_skin, rest_, onset_ok, asleep_ > 0};
       pol.BEGUN = begun_n_.data();
       pol.tid = static_cast<std::uint8_t>(th);
       if (T > 1) {
@@ -1943,6 +1996,7 @@ class HybridEngine final : public edm::EdmCore<D, CalendarQueue, HybridEngine<D>
   std::vector<std::uint8_t> iface_flag_;  // a hard particle on the interface list
   std::vector<double> iface_next_;        // its next capture check (substep time)
   double vsoft_max_ = 0.0;                // fastest awake soft particle at the last substep
+  std::vector<int> region_;               // region_cheaper_soft's hard neighbours
   static constexpr double kMaxSkip = 64.0;
   bool uniform_ = false;              // one material and one radius: ctab_ = {pair, wall 0, wall 1, ...}
   std::vector<SoftContact> ctab_;

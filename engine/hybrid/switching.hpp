@@ -42,6 +42,7 @@ class SwitchRule {
     rapid_.assign(n, 0);
     ema_.assign(n, kNever);
     prev_.assign(n, kNever);
+    prevu_.assign(n, kNever);
     seen_.assign(n, 0);
     recent_.assign(n, {-1, -1});
     recent_t_.assign(n, {-kNever, -kNever});
@@ -54,6 +55,7 @@ class SwitchRule {
     a(rapid_);
     a(ema_);
     a(prev_);
+    a(prevu_);
     a(seen_);
     a(recent_);
     a(recent_t_);
@@ -61,17 +63,18 @@ class SwitchRule {
 
   // A pair collision of hard particles i and j at t; last_i, last_j: the times of their previous
   // collisions (-infinity if none); contact_time(): t_c of this impact (called only when needed).
+  // u: the impact's normal speed (0: not known; the run then goes by the intervals alone).
   template <class Tc>
-  Switch pair(int i, int j, double t, double last_i, double last_j, Tc&& contact_time) {
+  Switch pair(int i, int j, double t, double last_i, double last_j, Tc&& contact_time, double u = 0.0) {
     const double since = t - (last_i > last_j ? last_i : last_j);
     bool stability = false;
     if (since < p_.hysteresis) {
       const double window = p_.stability * contact_time();
-      stability = rapid(i, t, last_i, window) | rapid(j, t, last_j, window);
+      stability = rapid(i, t, last_i, window, u) | rapid(j, t, last_j, window, u);
     }
     if (!(since < p_.hysteresis)) rapid_[i] = rapid_[j] = 0;
-    note_interval(i, t, last_i);
-    note_interval(j, t, last_j);
+    note_interval(i, t, last_i, u);
+    note_interval(j, t, last_j, u);
     if (stability) return Switch::Stability;
     if (cheaper_soft(i) || cheaper_soft(j)) return Switch::Cost;
     note_partner(i, j, t);
@@ -81,12 +84,12 @@ class SwitchRule {
 
   // A wall collision of hard i at t (resting: no normal approach left).
   template <class Tc>
-  Switch wall(int i, double t, double last_i, bool resting, Tc&& contact_time) {
+  Switch wall(int i, double t, double last_i, bool resting, Tc&& contact_time, double u = 0.0) {
     const double since = t - last_i;
     bool stability = resting;
-    if (!stability && since < p_.hysteresis) stability = rapid(i, t, last_i, p_.stability * contact_time());
+    if (!stability && since < p_.hysteresis) stability = rapid(i, t, last_i, p_.stability * contact_time(), u);
     if (!(since < p_.hysteresis)) rapid_[i] = 0;
-    note_interval(i, t, last_i);
+    note_interval(i, t, last_i, u);
     if (stability) return Switch::Stability;
     if (cheaper_soft(i)) return Switch::Cost;
     return Switch::Stay;
@@ -105,6 +108,7 @@ class SwitchRule {
   void forget_interval(int i) {
     ema_[i] = kNever;
     prev_[i] = kNever;
+    prevu_[i] = kNever;
     seen_[i] = 0;
   }
   void forget(int i) {
@@ -113,6 +117,11 @@ class SwitchRule {
   }
 
   double interval(int i) const { return ema_[i]; }
+  // i's smoothed collision rate as the cost rule counts it (0 before its 4th interval).
+  double rate(int i) const { return seen_[i] >= kCostAfter ? 1.0 / ema_[i] : 0.0; }
+  // The crossover rate of the cost rule, 1 / (cost_ratio x substep): a region whose grains
+  // collide faster than this on average is cheaper soft.
+  double crossover_rate() const { return 1.0 / p_.cost_interval; }
   // The partner of i's collision before its latest one (-1 if none).
   int earlier_partner(int i) const { return recent_[i][1]; }
   int rapid_count(int i) const { return rapid_[i]; }
@@ -120,20 +129,22 @@ class SwitchRule {
  private:
   static constexpr double kNever = std::numeric_limits<double>::infinity();
 
-  // A rapid collision continues the run if its interval is within the window and no longer than
-  // the previous one; within the window but longer, it starts a new run.
-  bool rapid(int i, double t, double last, double window) {
+  // A rapid collision continues the run if its interval is within the window and neither its
+  // interval nor its impact speed exceeds the previous collision's; within the window otherwise,
+  // it starts a new run.
+  bool rapid(int i, double t, double last, double window, double u) {
     const double dt = t - last;
     if (dt < window) {
-      rapid_[i] = dt <= prev_[i] ? rapid_[i] + 1 : 1;
+      rapid_[i] = dt <= prev_[i] && u <= prevu_[i] ? rapid_[i] + 1 : 1;
       return rapid_[i] >= p_.repeats;
     }
     rapid_[i] = 0;
     return false;
   }
-  void note_interval(int i, double t, double last) {
+  void note_interval(int i, double t, double last, double u) {
     const double dt = t - last;
     prev_[i] = dt;
+    prevu_[i] = u;
     if (!(dt < kNever)) return;  // the first collision: no interval yet
     const int n = seen_[i] < kEmaSpan ? ++seen_[i] : kEmaSpan;
     ema_[i] = n == 1 ? dt : ema_[i] + (dt - ema_[i]) / n;
@@ -151,6 +162,7 @@ class SwitchRule {
   std::vector<int> rapid_;
   std::vector<double> ema_;
   std::vector<double> prev_;  // each particle's latest interval (-> the shrinking test)
+  std::vector<double> prevu_;  // and the impact speed of its latest collision
   std::vector<int> seen_;     // intervals in ema_ (capped at kEmaSpan)
   std::vector<std::array<int, 2>> recent_;
   std::vector<std::array<double, 2>> recent_t_;

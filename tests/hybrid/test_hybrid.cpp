@@ -133,8 +133,9 @@ TEST(HybridBall, ComesToRestAtTheZenoTimeAndTdmAgrees) {
 // Three elastic spheres on a line, no gravity: A flies at B, B is pushed into C right away (C
 // sits just beyond B), so B's second collision follows its first within k t_c: the cluster turns
 // soft; once apart for the hysteresis it is released to EDM again.
-// A row of four grains, each within the capture skin (0.01 d) of the next: the first two start
-// overlapping by 1e-6 d and push apart (elastic), the other two are captured. Once the contact
+// A row of four grains, each within the least capture distance (hybrid.skin, here 0.01 d) of the
+// next: the first two start overlapping by 1e-6 d and push apart (elastic), the other two are
+// captured. Once the contact
 // has ended, no grain touches anything, but each has a soft neighbour within its skin, so the
 // single-grain release never frees one; the group release (its collisions are rare: cheaper as
 // events) returns all four to EDM together, and they fly on exactly as pure TDM's grains do.
@@ -162,6 +163,7 @@ TEST(HybridSwitch, AGroupOfGrainsWithinEachOthersSkinReturnsHardTogether) {
   es.thermo_interval = 0.5;
   HybridSettings hs;
   hs.hysteresis = 0.2;
+  hs.skin = 0.01;
   const RunResult<3> r = run_hybrid<3>(s, es, hs);
   ASSERT_EQ(r.status, "ok") << r.message;
   EXPECT_EQ(r.hybrid.by_overlap, 2u);

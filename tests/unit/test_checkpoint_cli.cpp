@@ -2,6 +2,7 @@
 // and continued with --resume writes the same files, byte for byte, as the run that never stopped;
 // a checkpoint of another scene, version or method, a corrupt or cut one, is refused naming what
 // differs, and nothing already written is lost.
+#include <fmt/format.h>
 #include <gtest/gtest.h>
 #include <signal.h>
 #include <unistd.h>
@@ -202,7 +203,7 @@ TEST(CheckpointCli, AnotherSceneVersionMethodOrACorruptFileIsRefusedNamingWhatDi
   std::string v9 = bytes;
   v9[8] = 9;
   expect_refused("run " + scene + " --set run.end_time=0.5" + resume + write("v9.bin", v9), d,
-                 "checkpoint version 9, this matep reads version 3");
+                 fmt::format("checkpoint version 9, this matep reads version {}", matep::kCheckpointVersion));
   expect_refused("run " + scene + " --set run.end_time=0.5" + resume + write("other.bin", "id,x,y\n"), d,
                  "not a matep checkpoint");
   expect_refused("run " + scene + " --set run.end_time=0.5" + resume + (root / "absent.bin").string(), d, "no such file");

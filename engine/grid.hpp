@@ -190,51 +190,14 @@ class CellGrid {
   // face). A cell is visited once per image; cells beyond a closed face are skipped.
   template <class Cell>
   void around(const std::array<int, D>& c, Cell&& cell, int layer_axis = -1, int layer_dir = 0) const {
-    std::array<int, 3> ck[D];
-    std::array<double, 3> sk[D];
-    std::array<int, D> cnt{};
-    for (int k = 0; k < D; ++k) {
-      const int olo = (k == layer_axis) ? layer_dir : -1;
-      const int ohi = (k == layer_axis) ? layer_dir : 1;
-      for (int o = olo; o <= ohi; ++o) {
-        int cc = c[k] + o;
-        double s = 0.0;
-        if (cc < 0) {
-          if (!periodic_[k]) continue;
-          cc += n_[k];
-          s = -len_[k];
-        } else if (cc >= n_[k]) {
-          if (!periodic_[k]) continue;
-          cc -= n_[k];
-          s = len_[k];
-        }
-        ck[k][cnt[k]] = cc;
-        sk[k][cnt[k]] = s;
-        ++cnt[k];
-      }
-    }
-    // Hashed cells: two cells of the stencil may share a bucket; each (bucket, shift) is visited
-    // once (a second visit would list its grains twice).
-    std::array<std::pair<int, Vec<D>>, kStencil> seen;
-    int nseen = 0;
-    auto visit = [&](const std::array<int, D>& cc, const Vec<D>& s) {
-      const int l = linear(cc);
-      if (hashed_) {
-        for (int q = 0; q < nseen; ++q)
-          if (seen[q].first == l && seen[q].second == s) return;
-        seen[nseen++] = {l, s};
-      }
-      cell(l, s);
-    };
-    if constexpr (D == 2) {
-      for (int a = 0; a < cnt[0]; ++a)
-        for (int b = 0; b < cnt[1]; ++b) visit({ck[0][a], ck[1][b]}, Vec<D>(sk[0][a], sk[1][b]));
-    } else {
-      for (int a = 0; a < cnt[0]; ++a)
-        for (int b = 0; b < cnt[1]; ++b)
-          for (int e = 0; e < cnt[2]; ++e)
-            visit({ck[0][a], ck[1][b], ck[2][e]}, Vec<D>(sk[0][a], sk[1][b], sk[2][e]));
-    }
+    around_rings<1>(c, cell, layer_axis, layer_dir);
+  }
+  // The same over the 5^D cells within two cells of c (a reach of up to two cell widths). A
+  // periodic axis has at least three cells, so each offset -2..2 is a cell of its own or another
+  // image of one (never the same cell and image twice).
+  template <class Cell>
+  void around_wide(const std::array<int, D>& c, Cell&& cell) const {
+    around_rings<2>(c, cell, -1, 0);
   }
 
   // The index of an image shift as passed by around() (j's image x_j + shift next to i) in
@@ -327,6 +290,57 @@ class CellGrid {
   }
 
  private:
+  template <int R, class Cell>
+  void around_rings(const std::array<int, D>& c, Cell&& cell, int layer_axis, int layer_dir) const {
+    constexpr int W = 2 * R + 1;
+    std::array<int, W> ck[D];
+    std::array<double, W> sk[D];
+    std::array<int, D> cnt{};
+    for (int k = 0; k < D; ++k) {
+      const int olo = (k == layer_axis) ? layer_dir : -R;
+      const int ohi = (k == layer_axis) ? layer_dir : R;
+      for (int o = olo; o <= ohi; ++o) {
+        int cc = c[k] + o;
+        double s = 0.0;
+        if (cc < 0) {
+          if (!periodic_[k]) continue;
+          cc += n_[k];
+          s = -len_[k];
+        } else if (cc >= n_[k]) {
+          if (!periodic_[k]) continue;
+          cc -= n_[k];
+          s = len_[k];
+        }
+        ck[k][cnt[k]] = cc;
+        sk[k][cnt[k]] = s;
+        ++cnt[k];
+      }
+    }
+    // Hashed cells: two cells of the stencil may share a bucket; each (bucket, shift) is visited
+    // once (a second visit would list its grains twice).
+    constexpr int kCells = D == 3 ? W * W * W : W * W;
+    std::array<std::pair<int, Vec<D>>, kCells> seen;
+    int nseen = 0;
+    auto visit = [&](const std::array<int, D>& cc, const Vec<D>& s) {
+      const int l = linear(cc);
+      if (hashed_) {
+        for (int q = 0; q < nseen; ++q)
+          if (seen[q].first == l && seen[q].second == s) return;
+        seen[nseen++] = {l, s};
+      }
+      cell(l, s);
+    };
+    if constexpr (D == 2) {
+      for (int a = 0; a < cnt[0]; ++a)
+        for (int b = 0; b < cnt[1]; ++b) visit({ck[0][a], ck[1][b]}, Vec<D>(sk[0][a], sk[1][b]));
+    } else {
+      for (int a = 0; a < cnt[0]; ++a)
+        for (int b = 0; b < cnt[1]; ++b)
+          for (int e = 0; e < cnt[2]; ++e)
+            visit({ck[0][a], ck[1][b], ck[2][e]}, Vec<D>(sk[0][a], sk[1][b], sk[2][e]));
+    }
+  }
+
   Vec<D> lo_ = Vec<D>::Zero(), len_ = Vec<D>::Ones(), w_ = Vec<D>::Ones();
   std::array<bool, D> periodic_{};
   std::array<int, D> n_{}, stride_{};

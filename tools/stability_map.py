@@ -1,38 +1,56 @@
 #!/usr/bin/python3
-"""Stability map: a small freely cooling gas swept over restitution e and packing fraction phi,
-run with every method; each cell is marked stable, collapse (EDM's inelastic collapse), blow-up
-(TDM's status "unstable") or refused (the CLI would not run it).
+"""Stability map: a small gas of inelastic spheres swept over restitution e and packing fraction phi,
+freely cooling in a periodic box and settling under gravity onto a floor, run with every method; each
+cell is marked stable, collapse (EDM's inelastic collapse), blow-up (TDM's status "unstable") or
+refused (the CLI would not run it), and gets each method's wall time and an accuracy figure against
+the cell's reference.
 
     /usr/bin/python3 tools/stability_map.py --matep build/matep --out charts/
 
-writes charts/stability_map.csv and charts/stability_map.png (one panel per method and step).
---quick runs a 2 x 2 map of 64 particles (a second or two; the test suite's mode). --repeat N runs
-each cell N times, each with a memory layout of its own (tools/matep_runs.py run_matep), and keeps
-the median wall time: a single run's time varies by up to 40 % with the layout (charts/README.md).
+writes charts/stability_map.csv, charts/stability_map.png (one panel per method and step, a row per
+gravity setting) and charts/stability_map_ratio.png (the hybrid's wall time over the better pure
+method's, with its accuracy, per cell). --quick runs a 2 x 2 map of 108 particles and 2 seeds (a few
+seconds; the test suite's mode). --repeat N runs each seed N times, each with a memory layout of its
+own (tools/matep_runs.py run_matep), and keeps the median wall time: a single run's time varies by up
+to 40 % with the layout (charts/README.md).
 
-The case: 512 unit spheres (unit mass) on a simple cubic lattice in a periodic cube sized for the
-packing fraction (a lattice reaches phi = 0.5; random placement stops at 0.384), Maxwellian
-velocities at T = 1, constant restitution e, linear spring-dashpot with k_n = 9e4 for the soft
+The case: 500 unit spheres (unit mass) on a face-centred cubic lattice (5 x 5 x 5 cells; it reaches
+every packing fraction of the map, up to 0.55) sized for the packing fraction, Maxwellian velocities
+at T = 1 from the seed, constant restitution e, linear spring-dashpot with k_n = 9e4 for the soft
 methods (overlaps near 1 % of d, as cases/soft_gas.toml), no friction, run to t = 20.
-Panels:
+* no gravity: a periodic cube; the gas cools freely (Haff's law, then clusters);
+* gravity: periodic sideways, a floor and a lid (plane walls) one diameter beyond the lattice,
+  g = 1 downwards (the thermal speed is 1: the gas falls onto the floor by t ~ 5 and settles into a
+  bed of 5-11 diameters).
+Methods and panels:
 * EDM: pure event-driven hard spheres (collapse watch at its defaults);
 * TDM at the default step (t_c/50);
 * TDM at 0.8 x the stability limit `matep check` prints for the cell (limit
   2/(eta + sqrt(eta^2 + omega0^2)) of one pair contact; a dense or strongly damped gas may still
-  blow up below it);
+  blow up below it); first seed only;
 * TDM at 2 x the limit: the CLI refuses a run.dt above the limit (exit 2, message naming the
-  limit), so these cells are "refused": no run is made and none is faked;
+  limit), so these cells are "refused": no run is made and none is faked; first seed only;
 * hybrid at its default rule (run.method = "hybrid"): "refused" while the CLI refuses the method.
-Soft runs use one thread. Every run has run.max_events = 10^6 (a legitimate run of this map needs
-fewer than 40 000 events): an EDM run that stops there without reaching t = 20 is "stalled" - its
-clock stopped in a burst of collisions at one instant that the collapse detection did not catch
-(seen at e <= 0.2). Any other stop (escaped, a run past 300 s, a crash) is "failed".
+Every soft run uses one thread. Every run has run.max_events = 10^6 (a legitimate run of this map
+needs far fewer): an EDM run that stops there without reaching the end is "stalled". Any other stop
+(escaped, a run past 300 s, a crash) is "failed". A method's outcome in a cell is its worst over
+the seeds; its wall time is the median over the seeds.
+
+Accuracy: an observable per run, averaged over the seeds (S = 3; each seed has its own velocities):
+the mean temperature over the second half of the run (no gravity) or the mean height of the grains
+at the end (gravity: the settled bed). The reference is EDM where it reaches the end for every seed,
+otherwise TDM at t_c/200. A method's deviation is its mean minus the reference's, in units of the
+statistical floor sqrt(se_method^2 + se_ref^2) (se: the standard error over the seeds); within 2 is
+within the floor. The ratio chart divides the hybrid's time by the faster of EDM (where it reached the
+end for every seed) and TDM at its default step.
 """
 from __future__ import annotations
 
 import argparse
 import csv
 import math
+import random
+import statistics
 import sys
 import tempfile
 from pathlib import Path
@@ -40,33 +58,39 @@ from pathlib import Path
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from matep_runs import check_soft, import_pyplot, run_repeated, write_csv  # noqa: E402
 
-FIELDS = ["method", "setting", "e", "phi", "status", "outcome", "wall_seconds", "time_reached", "dt",
-          "max_stable_dt", "max_overlap_relative", "message"]
+FIELDS = ["gravity", "method", "setting", "e", "phi", "status", "outcome", "wall_seconds", "time_reached", "dt",
+          "max_stable_dt", "max_overlap_relative", "observable", "observable_se", "reference", "deviation",
+          "ratio", "seeds", "message"]
 OUTCOME = {"ok": "stable", "collapse": "collapse", "unstable": "blow-up", "refused": "refused",
            "max_events": "stalled"}
 COLORS = {"stable": "#8fd18f", "collapse": "#f5b041", "stalled": "#b9770e", "blow-up": "#e74c3c",
           "refused": "#d5d8dc", "failed": "#a569bd"}
-MAX_EVENTS = 1_000_000  # a legitimate run here needs < 40 000 events; see "stalled" in the module doc
-# (restitutions, packing fractions, particles, end time)
-FULL = ([0.1, 0.3, 0.5, 0.7, 0.9], [0.05, 0.1, 0.2, 0.3, 0.4, 0.5], 512, 20.0)
-QUICK = ([0.3, 0.9], [0.1, 0.5], 64, 2.0)
-RUN_TIMEOUT = 300       # seconds; a run beyond it is recorded as "timeout" (outcome "failed")
+# Worst first: a method's outcome in a cell is the worst of its seeds'.
+SEVERITY = ["failed", "blow-up", "stalled", "collapse", "refused", "stable"]
+MAX_EVENTS = 1_000_000
+# restitutions, packing fractions, fcc cells per side (4 n^3 grains), end time, seeds
+FULL = ([0.1, 0.3, 0.5, 0.7, 0.9, 0.95], [0.05, 0.1, 0.2, 0.3, 0.4, 0.5, 0.55], 5, 20.0, 3)
+QUICK = ([0.3, 0.9], [0.1, 0.5], 3, 2.0, 2)
+GRAVITY = [False, True]
+RUN_TIMEOUT = 300  # seconds; a run beyond it is recorded as "timeout" (outcome "failed")
 PANELS = [("edm", "exact"), ("tdm", "t_c/50"), ("tdm", "0.8 limit"), ("tdm", "2 limit"), ("hybrid", "default")]
 TITLES = {("edm", "exact"): "EDM (hard spheres)", ("tdm", "t_c/50"): "TDM, dt = t_c/50 (default)",
           ("tdm", "0.8 limit"): "TDM, dt = 0.8 x stability limit", ("tdm", "2 limit"): "TDM, dt = 2 x limit",
           ("hybrid", "default"): "hybrid (default rule)"}
+REFERENCE = ("tdm", "t_c/200")  # where EDM does not reach the end
+WITHIN = 2.0  # a deviation within this many floors is "within the statistical floor"
 
-SCENE = """# Written by tools/stability_map.py: a freely cooling gas for the stability map.
+SCENE = """# Written by tools/stability_map.py: a gas of the stability map.
 [run]
 dimension = 3
 method = "edm"
 end_time = {end}
-seed = 7
+gravity = {gravity}
 
 [domain]
 lower = [0.0, 0.0, 0.0]
-upper = [10.0, 10.0, 10.0]
-periodic = [true, true, true]
+upper = [{L}, {L}, {H}]
+periodic = [true, true, {zper}]
 
 [material.grain]
 density = 1.909859317102744   # unit mass for unit diameter
@@ -76,50 +100,161 @@ stiffness = 9.0e4
 
 [particles.gas]
 material = "grain"
-radius = 0.5
-count = {count}
-arrangement = "lattice"
-temperature = 1.0
+file = "{state}"
 
 [output]
-thermo_interval = 0
+thermo_interval = {thermo}
+{walls}"""
+
+WALLS = """
+[wall.floor]
+type = "plane"
+point = [0.0, 0.0, 0.0]
+normal = [0.0, 0.0, 1.0]
+material = "grain"
+
+[wall.lid]
+type = "plane"
+point = [0.0, 0.0, {H}]
+normal = [0.0, 0.0, -1.0]
+material = "grain"
 """
 
 
-def sweep(matep, work: Path, es, phis, count, end, log, repeat=1) -> list[dict]:
-    scene = work / "cooling_gas.toml"
-    scene.write_text(SCENE.format(end=repr(float(end)), count=count))
+def fcc_state(n: int, phi: float, seed: int, gravity: bool):
+    """Positions of 4 n^3 unit spheres on an fcc lattice at packing fraction phi, Maxwellian
+    velocities at T = 1 with zero total momentum (seeded), the box side L and height H. With gravity
+    the lattice sits 0.52 above the floor and the lid is 1.02 above the lattice's top."""
+    a = (4.0 * math.pi / 6.0 / phi) ** (1.0 / 3.0)  # 4 spheres of volume pi/6 per cube a^3
+    L = n * a
+    basis = [(0.0, 0.0, 0.0), (0.5, 0.5, 0.0), (0.5, 0.0, 0.5), (0.0, 0.5, 0.5)]
+    z0 = 0.52 if gravity else 0.25 * a
+    xs = [((i + bx + 0.25) * a, (j + by + 0.25) * a, z0 + (k + bz) * a)
+          for i in range(n) for j in range(n) for k in range(n) for bx, by, bz in basis]
+    H = (z0 + (n - 0.5) * a + 0.52) if gravity else L
+    rng = random.Random(1000 + seed)
+    vs = [[rng.gauss(0.0, 1.0) for _ in range(3)] for _ in xs]
+    mean = [sum(v[k] for v in vs) / len(vs) for k in range(3)]
+    vs = [[v[k] - mean[k] for k in range(3)] for v in vs]
+    T = sum(v[k] ** 2 for v in vs for k in range(3)) / (3.0 * len(vs))
+    s = 1.0 / math.sqrt(T)
+    vs = [[s * c for c in v] for v in vs]
+    return xs, vs, L, H
+
+
+def write_scene(work: Path, n, phi, seed, gravity, end) -> Path:
+    xs, vs, L, H = fcc_state(n, phi, seed, gravity)
+    tag = f"{'g' if gravity else 'free'}_phi{phi}_s{seed}"
+    state = work / f"state_{tag}.csv"
+    with open(state, "w") as f:
+        f.write("x,y,z,vx,vy,vz,radius\n")
+        for x, v in zip(xs, vs):
+            f.write(",".join(repr(c) for c in (*x, *v)) + ",0.5\n")
+    scene = work / f"gas_{tag}.toml"
+    scene.write_text(SCENE.format(end=repr(float(end)), L=repr(L), H=repr(H), zper="false" if gravity else "true",
+                                  gravity="[0.0, 0.0, -1.0]" if gravity else "[0.0, 0.0, 0.0]", state=state.name,
+                                  thermo=repr(end / 40.0), walls=WALLS.format(H=repr(H)) if gravity else ""))
+    return scene
+
+
+def observable(run, gravity: bool, end: float) -> float:
+    """Mean temperature over the second half of the run (no gravity), or the grains' mean height
+    at the end (gravity); NaN if the run did not reach the end."""
+    if run.summary is None or run.status != "ok":
+        return math.nan
+    if gravity:
+        p = Path(run.out_dir) / "final_state.csv"
+        with open(p, newline="") as f:
+            zs = [float(r["z"]) for r in csv.DictReader(f)]
+        return sum(zs) / len(zs)
+    ts = [r["temperature"] for r in run.thermo() if r["time"] >= 0.5 * end - 1e-12]
+    return sum(ts) / len(ts) if ts else math.nan
+
+
+def mean_se(xs):
+    xs = [x for x in xs if math.isfinite(x)]
+    if not xs:
+        return math.nan, math.nan
+    if len(xs) == 1:
+        return xs[0], math.nan
+    return statistics.fmean(xs), statistics.stdev(xs) / math.sqrt(len(xs))
+
+
+def worst(outcomes):
+    return min(outcomes, key=SEVERITY.index)
+
+
+def sweep(matep, work: Path, es, phis, n, end, seeds, log, repeat=1, gravities=GRAVITY) -> list[dict]:
     rows = []
-    for e in es:
+    for gravity in gravities:
         for phi in phis:
-            L = (count * math.pi / 6.0 / phi) ** (1.0 / 3.0)
-            base = {"material.grain.restitution": float(e), "domain.upper": [L, L, L], "run.max_events": MAX_EVENTS}
-            soft = {**base, "run.method": "tdm", "run.threads": 1}
-            chk = check_soft(matep, scene, soft)
-            lim, tc = chk["max_stable_dt"], chk["contact_time"]
-            runs = [("edm", "exact", {**base, "run.method": "edm"}, math.nan),
-                    ("tdm", "t_c/50", soft, chk["dt"]),
-                    ("tdm", "0.8 limit", {**soft, "run.dt": 0.8 * lim}, 0.8 * lim),
-                    ("tdm", "2 limit", {**soft, "run.dt": 2.0 * lim}, 2.0 * lim),
-                    ("hybrid", "default", {**base, "run.method": "hybrid", "run.threads": 1}, math.nan)]
-            for method, setting, sets, dt in runs:
-                folder = work / f"{method}_{setting.replace(' ', '_').replace('/', '_')}_e{e}_phi{phi}"
-                r = run_repeated(matep, scene, sets, folder, repeat, timeout=RUN_TIMEOUT)
-                s = r.summary or {}
-                row = {"method": method, "setting": setting, "e": float(e), "phi": float(phi), "status": r.status,
-                       "outcome": OUTCOME.get(r.status, "failed"), "wall_seconds": r.wall_seconds,
-                       "time_reached": r.time_reached,
-                       "dt": float(s["soft"]["dt"]) if "soft" in s else dt,
-                       "max_stable_dt": lim if method != "edm" else math.nan,
-                       "max_overlap_relative": float(s.get("max_overlap_relative", math.nan)) if s else math.nan,
-                       "message": r.message}
-                rows.append(row)
-                stopped = row["outcome"] in ("collapse", "blow-up", "stalled")
-                log(f"e {e:<4} phi {phi:<5} {method:6s} {setting:9s} {row['outcome']:8s} "
-                    f"wall {row['wall_seconds']:.3g} s" + (f"  t = {row['time_reached']:.4g}" if stopped else ""))
-                if method == "tdm" and setting == "t_c/50" and not math.isnan(tc):
-                    row["message"] = row["message"] or f"t_c = {tc:.6g}, stability limit {lim:.6g}"
+            scenes = [write_scene(work, n, phi, s, gravity, end) for s in range(seeds)]
+            for e in es:
+                base = {"material.grain.restitution": float(e), "run.max_events": MAX_EVENTS}
+                soft = {**base, "run.method": "tdm", "run.threads": 1}
+                chk = check_soft(matep, scenes[0], soft)
+                lim, tc = chk["max_stable_dt"], chk["contact_time"]
+                runs = [("edm", "exact", {**base, "run.method": "edm"}, math.nan, seeds),
+                        ("tdm", "t_c/50", soft, chk["dt"], seeds),
+                        ("tdm", "0.8 limit", {**soft, "run.dt": 0.8 * lim}, 0.8 * lim, 1),
+                        ("tdm", "2 limit", {**soft, "run.dt": 2.0 * lim}, 2.0 * lim, 1),
+                        ("hybrid", "default", {**base, "run.method": "hybrid", "run.threads": 1}, math.nan, seeds)]
+                cell = []
+                for method, setting, sets, dt, nseeds in runs:
+                    cell.append(run_method(matep, work, scenes[:nseeds], gravity, e, phi, method, setting, sets, dt,
+                                           lim, end, repeat))
+                edm_ok = cell[0]["outcome"] == "stable"
+                if not edm_ok:  # the reference: TDM at t_c/200
+                    cell.append(run_method(matep, work, scenes, gravity, e, phi, *REFERENCE,
+                                           {**soft, "run.dt": chk["dt"] / 4.0}, chk["dt"] / 4.0, lim, end, repeat))
+                ref = cell[0] if edm_ok else cell[-1]
+                for r in cell:
+                    r["reference"] = f"{ref['method']} {ref['setting']}"
+                    if r is ref:
+                        r["deviation"] = 0.0
+                    elif math.isfinite(r["observable"]) and math.isfinite(ref["observable"]):
+                        floor = math.hypot(r["observable_se"], ref["observable_se"])
+                        r["deviation"] = (r["observable"] - ref["observable"]) / floor if floor > 0 else math.nan
+                    else:
+                        r["deviation"] = math.nan
+                hyb = cell[4]
+                best = min([cell[1]["wall_seconds"]] + ([cell[0]["wall_seconds"]] if edm_ok else []))
+                hyb["ratio"] = hyb["wall_seconds"] / best if hyb["outcome"] == "stable" else math.nan
+                if not math.isnan(tc):
+                    cell[1]["message"] = cell[1]["message"] or f"t_c = {tc:.6g}, stability limit {lim:.6g}"
+                for r in cell:
+                    stopped = r["outcome"] in ("collapse", "blow-up", "stalled")
+                    log(f"{'g' if gravity else '-'} e {e:<4} phi {phi:<5} {r['method']:6s} {r['setting']:9s} "
+                        f"{r['outcome']:8s} wall {r['wall_seconds']:.3g} s"
+                        + (f"  t = {r['time_reached']:.4g}" if stopped else "")
+                        + (f"  dev {r['deviation']:+.2f}" if math.isfinite(r['deviation']) else "")
+                        + (f"  ratio {r['ratio']:.2f}" if math.isfinite(r.get('ratio', math.nan)) else ""))
+                rows += cell
     return rows
+
+
+def run_method(matep, work, scenes, gravity, e, phi, method, setting, sets, dt, lim, end, repeat) -> dict:
+    results = []
+    for s, scene in enumerate(scenes):
+        folder = work / (f"{'g' if gravity else 'free'}_{method}_{setting.replace(' ', '_').replace('/', '_')}"
+                         f"_e{e}_phi{phi}_s{s}")
+        results.append(run_repeated(matep, scene, sets, folder, repeat, timeout=RUN_TIMEOUT))
+    outcomes = [OUTCOME.get(r.status, "failed") for r in results]
+    w = worst(outcomes)
+    first_bad = next((r for r, o in zip(results, outcomes) if o == w), results[0])
+    walls = [r.wall_seconds for r in results if math.isfinite(r.wall_seconds)]
+    obs, se = mean_se([observable(r, gravity, end) for r in results]) if w == "stable" else (math.nan, math.nan)
+    s0 = results[0].summary or {}
+    return {"gravity": int(gravity), "method": method, "setting": setting, "e": float(e), "phi": float(phi),
+            "status": first_bad.status, "outcome": w,
+            "wall_seconds": statistics.median(walls) if walls else math.nan,
+            "time_reached": min((r.time_reached for r in results), default=math.nan),
+            "dt": float(s0["soft"]["dt"]) if "soft" in s0 else dt,
+            "max_stable_dt": lim if method != "edm" else math.nan,
+            "max_overlap_relative": max((float((r.summary or {}).get("max_overlap_relative", math.nan))
+                                         for r in results), default=math.nan),
+            "observable": obs, "observable_se": se, "reference": "", "deviation": math.nan, "ratio": math.nan,
+            "seeds": len(scenes), "message": first_bad.message}
 
 
 def cell_text(r):
@@ -131,64 +266,118 @@ def cell_text(r):
     return o
 
 
+def grid(ax, es, phis):
+    ax.set_xlim(-0.5, len(phis) - 0.5)
+    ax.set_ylim(-0.5, len(es) - 0.5)
+    ax.set_xticks(range(len(phis)), [f"{p:g}" for p in phis], fontsize=7)
+    ax.set_yticks(range(len(es)), [f"{e:g}" for e in es], fontsize=7)
+    ax.set_xlabel("packing fraction phi", fontsize=8)
+
+
 def plot(rows, es, phis, png: Path, subtitle: str):
     plt = import_pyplot()
     from matplotlib.patches import Patch
-    fig, axes = plt.subplots(1, len(PANELS), figsize=(3.3 * len(PANELS), 3.9), sharey=True)
-    for ax, key in zip(axes, PANELS):
-        cells = {(r["e"], r["phi"]): r for r in rows if (r["method"], r["setting"]) == key}
+    gravities = sorted({int(r["gravity"]) for r in rows})
+    fig, axes = plt.subplots(len(gravities), len(PANELS), figsize=(3.3 * len(PANELS), 3.7 * len(gravities)),
+                             sharey=True, squeeze=False)
+    for row_axes, g in zip(axes, gravities):
+        for ax, key in zip(row_axes, PANELS):
+            cells = {(r["e"], r["phi"]): r for r in rows if (r["method"], r["setting"]) == key and int(r["gravity"]) == g}
+            for i, phi in enumerate(phis):
+                for j, e in enumerate(es):
+                    r = cells.get((float(e), float(phi)))
+                    if r is None:
+                        continue
+                    o = r["outcome"]
+                    ax.add_patch(plt.Rectangle((i - 0.5, j - 0.5), 1, 1, facecolor=COLORS[o], edgecolor="white",
+                                               hatch="//" if o == "refused" else None, linewidth=1.5))
+                    ax.text(i, j, cell_text(r), ha="center", va="center", fontsize=6)
+            grid(ax, es, phis)
+            title = TITLES[key] + (" - gravity" if g else " - free cooling")
+            refused = [r for r in cells.values() if r["outcome"] == "refused"]
+            if refused and len(refused) == len(cells):
+                msg = refused[0]["message"]
+                title += "\nrefused: " + ("method not in this matep" if "not available" in msg else
+                                          "run.dt above the limit" if "stability limit" in msg else msg[:40])
+            ax.set_title(title, fontsize=8)
+        row_axes[0].set_ylabel("restitution e", fontsize=8)
+    handles = [Patch(facecolor=c, label=o, hatch="//" if o == "refused" else None) for o, c in COLORS.items()
+               if any(r["outcome"] == o for r in rows) or o in ("stable", "collapse", "blow-up")]
+    fig.legend(handles=handles, loc="lower center", ncol=len(handles), fontsize=8, frameon=False)
+    fig.suptitle("stability map: " + subtitle, fontsize=9)
+    fig.tight_layout(rect=(0, 0.05, 1, 0.96))
+    fig.savefig(png, dpi=100)
+    plt.close(fig)
+
+
+def plot_ratio(rows, es, phis, png: Path, subtitle: str):
+    """The hybrid's wall time over the better pure method's per cell (colour, log scale) and its
+    accuracy (deviation from the reference in statistical floors)."""
+    plt = import_pyplot()
+    from matplotlib.colors import LogNorm
+    gravities = sorted({int(r["gravity"]) for r in rows})
+    fig, axes = plt.subplots(1, len(gravities), figsize=(5.2 * len(gravities), 4.6), sharey=True, squeeze=False)
+    norm = LogNorm(vmin=0.1, vmax=10.0)
+    cmap = plt.get_cmap("RdYlGn_r")
+    for ax, g in zip(axes[0], gravities):
+        cells = {(r["e"], r["phi"]): r for r in rows if (r["method"], r["setting"]) == ("hybrid", "default")
+                 and int(r["gravity"]) == g}
         for i, phi in enumerate(phis):
             for j, e in enumerate(es):
                 r = cells.get((float(e), float(phi)))
                 if r is None:
                     continue
-                o = r["outcome"]
-                ax.add_patch(plt.Rectangle((i - 0.5, j - 0.5), 1, 1, facecolor=COLORS[o], edgecolor="white",
-                                           hatch="//" if o == "refused" else None, linewidth=1.5))
-                ax.text(i, j, cell_text(r), ha="center", va="center", fontsize=6.5)
-        ax.set_xlim(-0.5, len(phis) - 0.5)
-        ax.set_ylim(-0.5, len(es) - 0.5)
-        ax.set_xticks(range(len(phis)), [f"{p:g}" for p in phis], fontsize=7)
-        ax.set_yticks(range(len(es)), [f"{e:g}" for e in es], fontsize=7)
-        ax.set_xlabel("packing fraction phi", fontsize=8)
-        title = TITLES[key]
-        refused = [r for r in cells.values() if r["outcome"] == "refused"]
-        if refused and len(refused) == len(cells):
-            msg = refused[0]["message"]
-            title += "\nrefused: " + ("method not in this matep" if "not available" in msg else
-                                      "run.dt above the limit" if "stability limit" in msg else msg[:40])
-        ax.set_title(title, fontsize=8)
-    axes[0].set_ylabel("restitution e", fontsize=8)
-    handles = [Patch(facecolor=c, label=o, hatch="//" if o == "refused" else None) for o, c in COLORS.items()
-               if any(r["outcome"] == o for r in rows) or o in ("stable", "collapse", "blow-up")]
-    fig.legend(handles=handles, loc="lower center", ncol=len(handles), fontsize=8, frameon=False)
-    fig.suptitle("stability map: " + subtitle, fontsize=9)
-    fig.tight_layout(rect=(0, 0.07, 1, 0.95))
-    fig.savefig(png, dpi=110)
+                ratio, dev = r["ratio"], r["deviation"]
+                if math.isfinite(ratio):
+                    face = cmap(norm(min(max(ratio, 0.1), 10.0)))
+                    text = f"{ratio:.2g}x"
+                else:
+                    face, text = COLORS.get(r["outcome"], "#cccccc"), r["outcome"]
+                if math.isfinite(dev):
+                    text += f"\n{dev:+.1f} sd"
+                ax.add_patch(plt.Rectangle((i - 0.5, j - 0.5), 1, 1, facecolor=face, edgecolor="white", linewidth=1.5,
+                                           hatch="xx" if math.isfinite(dev) and abs(dev) > WITHIN else None))
+                ax.text(i, j, text, ha="center", va="center", fontsize=6.5)
+        grid(ax, es, phis)
+        ax.set_title("hybrid time / better pure method's - " + ("gravity, floor" if g else "free cooling"), fontsize=8)
+    axes[0][0].set_ylabel("restitution e", fontsize=8)
+    sm = plt.cm.ScalarMappable(norm=norm, cmap=cmap)
+    fig.colorbar(sm, ax=axes[0].tolist(), shrink=0.8, label="hybrid / min(EDM if it ends, TDM t_c/50)")
+    fig.suptitle(f"hybrid against the better pure method ({subtitle}); second line: accuracy, "
+                 f"deviation from the reference in statistical floors (hatched beyond {WITHIN:g})", fontsize=8)
+    fig.savefig(png, dpi=100, bbox_inches="tight")
     plt.close(fig)
+
+
+def read_rows(csv_path):
+    words = ("method", "setting", "status", "outcome", "message", "reference")
+    with open(csv_path, newline="") as f:
+        return [{k: (v if k in words else float(v) if v else math.nan) for k, v in row.items()}
+                for row in csv.DictReader(f)]
 
 
 def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--matep", default="build/matep", help="the matep executable (default build/matep)")
-    ap.add_argument("--out", default="charts", help="folder for stability_map.csv and .png (default charts/)")
-    ap.add_argument("--quick", action="store_true", help="a 2 x 2 map of 64 particles (the test suite's mode)")
+    ap.add_argument("--out", default="charts", help="folder for stability_map.csv and the PNGs (default charts/)")
+    ap.add_argument("--quick", action="store_true", help="a 2 x 2 map of 108 particles, 2 seeds (the test suite's mode)")
     ap.add_argument("--work", default=None, help="keep the runs' outputs in this folder (default: a temporary one)")
-    ap.add_argument("--plot-only", action="store_true", help="redraw the PNG from the CSV in --out, running nothing")
+    ap.add_argument("--plot-only", action="store_true", help="redraw the PNGs from the CSV in --out, running nothing")
+    ap.add_argument("--gravity", choices=["both", "off", "on"], default="both", help="which half of the map to run")
     ap.add_argument("--repeat", type=int, default=1,
-                    help="runs per cell, each with a memory layout of its own; the wall time is their median "
+                    help="runs per seed, each with a memory layout of its own; the wall time is their median "
                          "(use 3 or more to compare versions: a single run varies by up to 40 %%)")
     args = ap.parse_args(argv)
-    es, phis, count, end = QUICK if args.quick else FULL
+    es, phis, n, end, seeds = QUICK if args.quick else FULL
     out = Path(args.out)
-    csv_path, png_path = out / "stability_map.csv", out / "stability_map.png"
-    subtitle = f"freely cooling gas, {count} spheres on a lattice, T0 = 1, linear k_n = 9e4, to t = {end:g}"
+    csv_path = out / "stability_map.csv"
+    png_path, ratio_path = out / "stability_map.png", out / "stability_map_ratio.png"
+    subtitle = f"{4 * n ** 3} spheres, fcc start, T0 = 1, linear k_n = 9e4, to t = {end:g}, {seeds} seeds"
     if args.plot_only:
-        with open(csv_path, newline="") as f:
-            rows = [{k: (v if k in ("method", "setting", "status", "outcome", "message") else
-                         float(v) if v else math.nan) for k, v in row.items()} for row in csv.DictReader(f)]
+        rows = read_rows(csv_path)
         plot(rows, es, phis, png_path, subtitle)
-        print(f"wrote {png_path}")
+        plot_ratio(rows, es, phis, ratio_path, subtitle)
+        print(f"wrote {png_path} and {ratio_path}")
         return
     if args.repeat < 1:
         ap.error(f"--repeat {args.repeat}: must be at least 1")
@@ -196,13 +385,15 @@ def main(argv=None):
     if not matep.exists():
         ap.error(f"--matep {args.matep}: no such file (build it: cmake --build build --target matep)")
     out.mkdir(parents=True, exist_ok=True)
+    gravities = {"both": GRAVITY, "off": [False], "on": [True]}[args.gravity]
     with tempfile.TemporaryDirectory(prefix="matep_map_") as tmp:
         work = Path(args.work) if args.work else Path(tmp)
         work.mkdir(parents=True, exist_ok=True)
-        rows = sweep(matep, work, es, phis, count, end, lambda s: print(s, flush=True), args.repeat)
+        rows = sweep(matep, work, es, phis, n, end, seeds, lambda s: print(s, flush=True), args.repeat, gravities)
     write_csv(csv_path, FIELDS, rows)
     plot(rows, es, phis, png_path, subtitle)
-    print(f"wrote {csv_path} and {png_path}")
+    plot_ratio(rows, es, phis, ratio_path, subtitle)
+    print(f"wrote {csv_path}, {png_path} and {ratio_path}")
 
 
 if __name__ == "__main__":

@@ -505,6 +505,23 @@ class EdmCore {
         layer_axis, layer_dir);
   }
 
+  // f(j, shift) for the particles j != i whose centres may lie within `reach` of i's (beyond the
+  // cells around i's when reach exceeds a cell width: an extension whose lists reach further than
+  // the cells' margin, the hybrid's soft list; at most two cell widths).
+  template <class F>
+  void for_neighbours_reach(int i, double reach, F&& f) const {
+    double wmin = kNever;
+    for (int k = 0; k < D; ++k) wmin = std::min(wmin, grid_.width(k));
+    if (reach <= wmin) {
+      for_neighbours(i, f);
+      return;
+    }
+    grid_.around_wide(cold_[i].cell, [&](int lin, const Vec<D>& shift) {
+      for (int j = head_[lin]; j >= 0; j = next_[j])
+        if (j != i) f(j, shift);
+    });
+  }
+
   // ---- motion ---------------------------------------------------------------------------------
   void advance(int i, double t) {
     if (!flies(i)) return;  // fixed, or moved by an extension (the hybrid's substeps)

@@ -124,32 +124,60 @@ def check_map(matep, out, hybrid_refused):
     run_tool([REPO / "tools/stability_map.py", "--matep", matep, "--out", out, "--quick"])
     rows = read_csv(out / "stability_map.csv")
     es, phis = stability_map.QUICK[:2]
-    for method, setting in stability_map.PANELS:
+    seeds = stability_map.QUICK[4]
+    for gravity in (0, 1):
         for e in es:
             for phi in phis:
-                got = [r for r in rows if (r["method"], r["setting"]) == (method, setting)
-                       and num(r["e"]) == e and num(r["phi"]) == phi]
-                where = f"map: {method} {setting} e={e} phi={phi}"
-                if not expect(len(got) == 1, f"{where}: {len(got)} rows, expected 1"):
-                    continue
-                r = got[0]
-                expect(r["outcome"] in stability_map.COLORS, f"{where}: outcome {r['outcome']}")
-                if r["outcome"] == "refused":
-                    if method == "hybrid":
-                        expect(hybrid_refused, f"{where}: refused although the CLI runs hybrid: {r['message']}")
-                    else:
-                        expect(setting == "2 limit" and "stability limit" in r["message"],
-                               f"{where}: refused: {r['message']}")
-                    continue
-                expect(math.isfinite(num(r["wall_seconds"])) and math.isfinite(num(r["time_reached"])),
-                       f"{where}: wall_seconds {r['wall_seconds']} time_reached {r['time_reached']}")
-                if method == "edm":
-                    expect(r["outcome"] in ("stable", "collapse", "stalled"), f"{where}: {r['outcome']} {r['message']}")
-                if (method, setting) == ("tdm", "t_c/50"):
-                    expect(r["outcome"] == "stable", f"{where}: the default step is not stable: {r['message']}")
-                if (method, setting) == ("tdm", "2 limit"):
-                    expect(False, f"{where}: a step of twice the stability limit was not refused")
+                cell = [r for r in rows if int(num(r["gravity"])) == gravity and num(r["e"]) == e and num(r["phi"]) == phi]
+                here = f"map: gravity {gravity} e={e} phi={phi}"
+                by = {(r["method"], r["setting"]): r for r in cell}
+                for method, setting in stability_map.PANELS:
+                    where = f"{here} {method} {setting}"
+                    got = [r for r in cell if (r["method"], r["setting"]) == (method, setting)]
+                    if not expect(len(got) == 1, f"{where}: {len(got)} rows, expected 1"):
+                        continue
+                    r = got[0]
+                    expect(r["outcome"] in stability_map.COLORS, f"{where}: outcome {r['outcome']}")
+                    if r["outcome"] == "refused":
+                        if method == "hybrid":
+                            expect(hybrid_refused, f"{where}: refused although the CLI runs hybrid: {r['message']}")
+                        else:
+                            expect(setting == "2 limit" and "stability limit" in r["message"],
+                                   f"{where}: refused: {r['message']}")
+                        continue
+                    expect(math.isfinite(num(r["wall_seconds"])) and math.isfinite(num(r["time_reached"])),
+                           f"{where}: wall_seconds {r['wall_seconds']} time_reached {r['time_reached']}")
+                    if method == "edm":
+                        expect(r["outcome"] in ("stable", "collapse", "stalled"), f"{where}: {r['outcome']} {r['message']}")
+                    if (method, setting) == ("tdm", "t_c/50"):
+                        expect(r["outcome"] == "stable", f"{where}: the default step is not stable: {r['message']}")
+                    if (method, setting) == ("tdm", "2 limit"):
+                        expect(False, f"{where}: a step of twice the stability limit was not refused")
+                    if setting in ("exact", "t_c/50", "default"):
+                        expect(int(num(r["seeds"])) == seeds, f"{where}: {r['seeds']} seeds, expected {seeds}")
+                    if r["outcome"] == "stable" and setting in ("exact", "t_c/50", "default"):
+                        # the observable of every seed: a temperature or a height, positive, with its scatter
+                        expect(num(r["observable"]) > 0 and math.isfinite(num(r["observable_se"])),
+                               f"{where}: observable {r['observable']} +- {r['observable_se']}")
+                # The reference: EDM where it reaches the end, else TDM at t_c/200 (a row of its own).
+                edm = by.get(("edm", "exact"))
+                ref = ("edm", "exact") if edm and edm["outcome"] == "stable" else stability_map.REFERENCE
+                expect(ref in by and by[ref]["outcome"] == "stable", f"{here}: no stable reference {ref}")
+                for r in cell:
+                    expect(r["reference"] == f"{ref[0]} {ref[1]}", f"{here}: reference {r['reference']}, expected {ref}")
+                if ref in by:
+                    expect(num(by[ref]["deviation"]) == 0.0, f"{here}: the reference's deviation {by[ref]['deviation']}")
+                hyb = by.get(("hybrid", "default"))
+                if hyb and hyb["outcome"] == "stable" and ref in by:
+                    # in a 108-grain gas to t = 2 every method agrees with the reference within 4 floors
+                    expect(abs(num(hyb["deviation"])) < 4.0, f"{here}: hybrid deviation {hyb['deviation']}")
+                    best = [num(by[("tdm", "t_c/50")]["wall_seconds"])]
+                    if edm and edm["outcome"] == "stable":
+                        best.append(num(edm["wall_seconds"]))
+                    expect(abs(num(hyb["ratio"]) - num(hyb["wall_seconds"]) / min(best)) < 1e-3 * num(hyb["ratio"]),
+                           f"{here}: ratio {hyb['ratio']} is not the hybrid's time over {min(best)}")
     check_png(out / "stability_map.png")
+    check_png(out / "stability_map_ratio.png")
 
 
 def main():

@@ -76,7 +76,7 @@ struct HybridStats {
   std::uint64_t rebuilds = 0;         // soft neighbour-list builds
   double stability = 0.0;             // k
   double hysteresis = 0.0;            // release hysteresis [s]
-  double skin = 0.0;                  // capture skin [m]
+  double skin = 0.0;                  // least capture distance [m]
   double cost_ratio = 0.0;
   double rest_speed = 0.0, rest_time = 0.0;
 };

@@ -639,6 +639,9 @@ class HybridEngine final : public edm::EdmCore<D, CalendarQueue, HybridEngine<D>
     acc_[i] = g_;
     f_[i].setZero();
     x0_[i] = hot_[i].x;
+    // The capture distances of this substep count the joining grain's speed (the bound of the
+    // soft grains' speeds is otherwise the last full step's).
+    vsoft_max_ = std::max(vsoft_max_, hot_[i].v.norm());
     if (rot_) {
       wh_[i] = sys_.w[i];
       alpha_[i].setZero();
@@ -686,9 +689,9 @@ class HybridEngine final : public edm::EdmCore<D, CalendarQueue, HybridEngine<D>
   // A candidate is an awake soft grain that touches nothing (one that turned soft by the
   // stability rule: for the release hysteresis) and has begun contacts, over its recent window
   // (at least k t_c), at under half the cost crossover rate 1 / (cost_ratio h) that turns a hard
-  // grain soft (the factor 2 is the rule's hysteresis). A hard grain may not lie within the
-  // capture skin of a soft one, so a candidate with a soft or sleeping grain that is not a
-  // candidate within the skin stays, and so on through the chain (fixed grains do not hold: hard
+  // grain soft (the factor 2 is the rule's hysteresis). A hard grain may not lie within its
+  // capture distance of a soft one, so a candidate with a soft or sleeping grain that is not a
+  // candidate within that distance stays, and so on through the chain (fixed grains do not hold: hard
   // grains meet them in EDM); the rest go hard.
   // The single-grain release above is the case of a candidate with no soft grain in its skin; this
   // one frees a dense gas whose grains are all within each other's skins. The window is halved
@@ -845,6 +848,10 @@ class HybridEngine final : public edm::EdmCore<D, CalendarQueue, HybridEngine<D>
   MATEP_FLATTEN void rebuild_entries(double t) {
     ++hstats_.rebuilds;
     build_t_ = t;
+    // The soft set in id order (the arrays' order): each substep's passes (drift, rows, full step)
+    // then walk the arrays forwards instead of in the order the grains joined.
+    std::sort(soft_.begin(), soft_.end());
+    for (std::size_t k = 0; k < soft_.size(); ++k) slot_[soft_[k]] = static_cast<int>(k);
     soft::SpringMemory<D>& mem = springs_;
     mem.clear();
     pairs_.for_each([&](const PairEntry& e) {
@@ -1418,7 +1425,7 @@ class HybridEngine final : public edm::EdmCore<D, CalendarQueue, HybridEngine<D>
       flag(TOUCHING[i]);
       flag(TOUCHING[j]);
     }
-    // Release needs no particle within the capture skin, save a fixed one (a hard grain meets it in
+    // Release needs no particle within the capture distance, save a fixed one (a hard grain meets it in
     // EDM without being captured).
     void near(std::uint32_t i, std::uint32_t j) {
       if (MODE[j] != kFixed) {

@@ -150,6 +150,49 @@ TEST(SwitchRule, RapidCollisionsWhoseIntervalsGrowAreADenseGasNotACollapse) {
   EXPECT_EQ(r.pair(0, 1, t, last, last, tc), Switch::Stability);
 }
 
+// A run needs shrinking impacts too: a bouncing sequence and a collapsing cluster lose relative
+// speed at each collision; a dense gas's rapid collisions come at any speed. Shrinking intervals
+// at rising impact speeds build no run; the same intervals at falling speeds complete one at the
+// third; a faster impact inside a run starts it again.
+TEST(SwitchRule, ARapidRunNeedsShrinkingImpactSpeedsToo) {
+  SwitchRule r = rule();
+  double t = 1.0, last = -kNever;
+  r.pair(0, 1, t, last, last, tc, 1.0);
+  last = t;
+  double u = 1.0;
+  for (const double dt : {0.018, 0.016, 0.014, 0.012}) {  // intervals shrink, impacts grow
+    t += dt;
+    u *= 1.1;
+    EXPECT_EQ(r.pair(0, 1, t, last, last, tc, u), Switch::Stay) << dt;
+    EXPECT_EQ(r.rapid_count(0), 1) << dt;
+    last = t;
+  }
+  SwitchRule q = rule();
+  t = 1.0;
+  last = -kNever;
+  q.pair(0, 1, t, last, last, tc, 1.0);
+  last = t;
+  u = 1.0;
+  const double dts[] = {0.018, 0.016, 0.014};
+  for (int k = 0; k < 3; ++k) {  // both shrink: the third rapid collision completes the run
+    t += dts[k];
+    u *= 0.8;
+    EXPECT_EQ(q.pair(0, 1, t, last, last, tc, u), k < 2 ? Switch::Stay : Switch::Stability) << k;
+    last = t;
+  }
+  SwitchRule w = rule();  // the wall rule alike: a faster impact restarts the count
+  t = 1.0;
+  last = -kNever;
+  w.wall(0, t, last, false, tc, 1.0);
+  last = t;
+  for (const auto& [dt, speed] : {std::pair{0.018, 0.9}, std::pair{0.016, 0.95}, std::pair{0.014, 0.8}}) {
+    t += dt;
+    EXPECT_EQ(w.wall(0, t, last, false, tc, speed), Switch::Stay) << dt;
+    last = t;
+  }
+  EXPECT_EQ(w.rapid_count(0), 2);  // 0.95 > 0.9 started a new run at the second
+}
+
 TEST(SwitchRule, RestingOnAWallIsUnstableAndClusterFollowsRecentPartners) {
   SwitchRule r = rule();
   EXPECT_EQ(r.wall(0, 1.0, -kNever, /*resting=*/true, tc), Switch::Stability);

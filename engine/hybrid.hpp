@@ -7,7 +7,8 @@
 //    with the particles it collided with in that window (its cluster); the collision is then
 //    resolved by the soft contact law, which starts within the substep as in a pure TDM run;
 //  * cost: the same when its smoothed interval between collisions falls below cost_ratio * dt
-//    (the crossover where TDM substeps are cheaper than EDM events);
+//    (the crossover where TDM substeps are cheaper than EDM events) and the mean rate of it and
+//    its hard neighbours (whom it would draw in by capture) is above that crossover too;
 //  * capture: a hard particle joins the soft set at the next substep when its gap to a soft one
 //    falls below twice what the two can close in one substep at their current speeds (at least
 //    `skin`), so no contact is missed and a grain joins only just before it touches;

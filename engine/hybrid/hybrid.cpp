@@ -423,7 +423,8 @@ class HybridEngine final : public edm::EdmCore<D, CalendarQueue, HybridEngine<D>
   // joins the soft set): twice the most the gap can close in one substep (its speed and gravity's
   // gain, and twice the fastest soft grain's speed: a soft grain may speed up inside the
   // substep), so that the join comes a substep before the touch at the latest; at least
-  // hybrid.skin (round-off, and resting grains), at most the list skin (the cells' reach).
+  // hybrid.skin (round-off, and resting grains), at most the distance of a pair at the largest
+  // expected impact speed (cskin_, the EDM cells' margin: their reach).
   // A fixed capture skin made a dense gas sticky: at phi = 0.5 each grain has on average 0.7
   // neighbours within 0.01 d, so a soft seed drew most of the gas in and held it there
   // (charts/README.md, stability map).
@@ -693,8 +694,8 @@ class HybridEngine final : public edm::EdmCore<D, CalendarQueue, HybridEngine<D>
   // capture distance of a soft one, so a candidate with a soft or sleeping grain that is not a
   // candidate within that distance stays, and so on through the chain (fixed grains do not hold: hard
   // grains meet them in EDM); the rest go hard.
-  // The single-grain release above is the case of a candidate with no soft grain in its skin; this
-  // one frees a dense gas whose grains are all within each other's skins. The window is halved
+  // The single-grain release above is the case of a candidate with no soft grain within its
+  // capture distance; this one frees a dense gas whose grains all lie close to each other. The window is halved
   // (count and span) once it exceeds 4 k t_c, so that it follows a cooling or thinning flow.
   void release_by_cost(double t) {
     const double rmax = 0.5 / (hset_.cost_ratio * h_);

@@ -523,6 +523,13 @@ class EdmCore {
   }
 
   // ---- motion ---------------------------------------------------------------------------------
+  // Where i's flight puts its centre at time t, without advancing it (a fixed grain, or one an
+  // extension moves, is where it is stored).
+  Vec<D> position_at(int i, double t) const {
+    const Hot<D>& h = hot_[i];
+    const double dt = flies(i) ? t - h.t : 0.0;
+    return h.x + h.v * dt + (0.5 * dt * dt) * g_;
+  }
   void advance(int i, double t) {
     if (!flies(i)) return;  // fixed, or moved by an extension (the hybrid's substeps)
     Hot<D>& h = hot_[i];
@@ -824,11 +831,8 @@ class EdmCore {
     bool free = true;
     grid_.around(grid_.coords(x), [&](int lin, const Vec<D>& shift) {
       for (int j = head_[lin]; j >= 0 && free; j = next_[j]) {
-        const Hot<D>& h = hot_[j];
-        const double dt = flies(j) ? t - h.t : 0.0;
-        const Vec<D> xj = h.x + h.v * dt + (0.5 * dt * dt) * g_;
-        const double s = R + h.R;
-        if ((x - xj - shift).squaredNorm() < s * s) free = false;
+        const double s = R + hot_[j].R;
+        if ((x - position_at(j, t) - shift).squaredNorm() < s * s) free = false;
       }
     });
     return free;
@@ -1084,7 +1088,7 @@ class EdmCore {
     for (int i = 0; i < N_; ++i) {
       const Hot<D>& h = hot_[i];
       const double dt = flies(i) ? t - h.t : 0.0;
-      snap.x[i] = h.x + h.v * dt + (0.5 * dt * dt) * g_;
+      snap.x[i] = position_at(i, t);
       snap.v[i] = h.v + g_ * dt;
       snap.radius[i] = h.R;
     }

@@ -64,9 +64,9 @@ Skins hybrid_skins(const System<D>& sys, const SoftPlan& plan, const HybridSetti
   s.capture_max = std::max(s.capture, 2.0 * h * (3.0 * plan.impact_speed + sys.gravity.norm() * h));
   // The Verlet list of the soft set takes the TDM engine's skin, 0.1 d (a wider one saved
   // rebuilds in the pour but widened the EDM cells, whose width is the list's cut-off: 10 %
-  // slower hard predictions in a gas), and at least what two grains at the largest expected
-  // impact speed close in four substeps (the cells must reach every grain a capture may need).
-  s.list = std::max({s.capture_max, kListSkin * dmin, 4.0 * plan.impact_speed * h});
+  // slower hard predictions in a gas), and at least the largest capture distance (a captured
+  // grain's entries must reach its soft neighbours).
+  s.list = std::max(s.capture_max, kListSkin * dmin);
   return s;
 }
 
@@ -162,7 +162,6 @@ class HybridEngine final : public edm::EdmCore<D, CalendarQueue, HybridEngine<D>
     walls_.assign(shapes_);
     for (const WallShape<D>* w : shapes_) sweep_ = std::max(sweep_, w->sweep_speed());
     sg_w_ = 2.0 * rmax + lskin_;
-    list_reach_ = 2.0 * rmax + lskin_;
     for (int k = 0; k < D; ++k) any_periodic_ = any_periodic_ || sys_.periodic[k];
     hybrid_arrays();
     own_.assign(N_, kUnowned);
@@ -494,15 +493,11 @@ class HybridEngine final : public edm::EdmCore<D, CalendarQueue, HybridEngine<D>
   bool region_cheaper_soft(int i, int j, double t) {
     region_.clear();
     auto visit = [&](int c) {
-      const Hot<D>& hc = hot_[c];
-      const double dtc = t - hc.t;
-      const Vec<D> xc = hc.x + hc.v * dtc + (0.5 * dtc * dtc) * g_;
-      this->for_neighbours_reach(c, 1.5 * list_reach_, [&](int k, const Vec<D>& shift) {
+      const Vec<D> xc = this->position_at(c, t);
+      this->for_neighbours_reach(c, 1.5 * sg_w_, [&](int k, const Vec<D>& shift) {
         if (mode_[k] != kHard || k == i || k == j) return;
-        const Hot<D>& hk = hot_[k];
-        const double dtk = t - hk.t;
-        const double cut = 1.5 * (hc.R + hk.R);
-        if ((xc - hk.x - hk.v * dtk - (0.5 * dtk * dtk) * g_ - shift).squaredNorm() < cut * cut) region_.push_back(k);
+        const double cut = 1.5 * (hot_[c].R + hot_[k].R);
+        if ((xc - this->position_at(k, t) - shift).squaredNorm() < cut * cut) region_.push_back(k);
       });
     };
     visit(i);
@@ -794,7 +789,7 @@ class HybridEngine final : public edm::EdmCore<D, CalendarQueue, HybridEngine<D>
     const Vec<D> xi = hot_[i].x;
     const double Ri = hot_[i].R;
     pairs_.begin_row(ui(i));
-    this->for_neighbours_reach(i, list_reach_, [&](int j, const Vec<D>& shift) {
+    this->for_neighbours_reach(i, sg_w_, [&](int j, const Vec<D>& shift) {
       if (mode_[j] != kSoft && mode_[j] != kAsleep && mode_[j] != kFixed) return;
       const double cut = Ri + hot_[j].R + lskin_;
       if ((xi - hot_[j].x - shift).squaredNorm() >= cut * cut) return;
@@ -1297,7 +1292,7 @@ class HybridEngine final : public edm::EdmCore<D, CalendarQueue, HybridEngine<D>
       }
       const Hot<D>& hi = hot_[i];
       const double dt = t - hi.t;
-      const Vec<D> xi = hi.x + hi.v * dt + (0.5 * dt * dt) * g_;
+      const Vec<D> xi = this->position_at(i, t);
       bool any = false, in = false;
       double gmin = kNever;
       const double vi = (hi.v + g_ * dt).norm();
@@ -1883,7 +1878,7 @@ class HybridEngine final : public edm::EdmCore<D, CalendarQueue, HybridEngine<D>
     for (const int j : woken_) {
       const Vec<D> xj = hot_[j].x;
       const double Rj = hot_[j].R;
-      this->for_neighbours_reach(j, list_reach_, [&](int k, const Vec<D>& shift) {
+      this->for_neighbours_reach(j, sg_w_, [&](int k, const Vec<D>& shift) {
         if (!still(ui(k))) return;
         const double cut = Rj + hot_[k].R + lskin_;
         if ((xj - hot_[k].x - shift).squaredNorm() >= cut * cut) return;
@@ -1981,7 +1976,6 @@ class HybridEngine final : public edm::EdmCore<D, CalendarQueue, HybridEngine<D>
   SoftPlan plan_;
   double lskin_ = 0.0;
   double cskin_ = 0.0;  // the largest capture distance (the EDM cells' margin)
-  double list_reach_ = 0.0;  // the largest centre distance of a soft list entry, 2 rmax + lskin_
   double sweep_ = 0.0, build_t_ = 0.0;  // the walls' largest sweep speed, the time of the last rebuild
   double h_ = 0.0, hdt_ = 0.0, skin_ = 0.0, kstab_ = 0.0, hyst_ = 0.0, rest_time_ = 0.0;
   double lookahead_ = 0.0;  // hybrid.lookahead: L
@@ -2053,7 +2047,8 @@ class HybridEngine final : public edm::EdmCore<D, CalendarQueue, HybridEngine<D>
   std::vector<int> woken_;
   std::vector<int> fresh_, asleep_list_, asleep_slot_;
   std::vector<int> fixed_list_;  // the fixed grains (kFixed)
-  // Soft grid (soft_grid_build): the one cell grid (engine/grid.hpp) over the soft set.
+  // Soft grid (soft_grid_build): the one cell grid (engine/grid.hpp) over the soft set. Its width,
+  // 2 rmax + lskin_, is the largest centre distance of a soft list entry.
   double sg_w_ = 0.0;
   CellGrid<D> sgrid_;
   bool any_periodic_ = false;

@@ -6,14 +6,18 @@
 //    (2 <z>) and the kinetic-energy curve compared (the bound on the time ratio is 1/3);
 //  * soft set: a dense soft gas (32 768 grains, every one touching its neighbours at the start and
 //    kept soft: releases off), the hybrid's soft particle-steps per second on 1 and `--threads` threads
-//    against TDM's on the same gas and thread counts.
-// Usage: matep_bench_hybrid [--repeats N] [--only gas|pour|soft] [--threads T] [--steps S] [--verbose]
+//    against TDM's on the same gas and thread counts; with --shuffle the grains' ids are scattered
+//    in space (a random permutation of the lattice), as in a scene placed at random or read from a
+//    file (TDM sorts its storage in space at each list build; the hybrid renumbers the grains once,
+//    engine/renumber.hpp).
+// Usage: matep_bench_hybrid [--repeats N] [--only gas|pour|soft] [--threads T] [--steps S] [--shuffle] [--verbose]
 #include <fmt/format.h>
 
 #include <algorithm>
 #include <chrono>
 #include <cmath>
 #include <cstring>
+#include <random>
 #include <string>
 #include <vector>
 
@@ -81,7 +85,7 @@ temperature = 1.0
 // whole gas stays soft and melts into a dense soft fluid. Rates are soft particle-steps per second
 // of the whole run (list builds included), medians of alternated runs: TDM 1 thread, hybrid 1
 // thread, TDM T threads, hybrid T threads.
-void soft_set(int repeats, int threads, double steps, bool verbose) {
+void soft_set(int repeats, int threads, double steps, bool shuffle, bool verbose) {
   const std::string text = lattice_gas_scene(1.0, 5, 32.0, 0.9, "contact = \"linear\"\nstiffness = 9.0e4",
                                               "[hybrid]\ncost_ratio = 1.0e9\nhysteresis = 1.0e9");
   const Scene scene = load_scene_string(text, "dense_soft_gas", "");
@@ -89,6 +93,17 @@ void soft_set(int repeats, int threads, double steps, bool verbose) {
   const double s = 0.99;
   sys.upper *= s;
   for (auto& x : sys.x) x *= s;
+  if (shuffle) {  // the same gas, its ids scattered in space
+    std::mt19937 rng(3);
+    std::vector<std::size_t> p(sys.x.size());
+    for (std::size_t k = 0; k < p.size(); ++k) p[k] = k;
+    std::shuffle(p.begin(), p.end(), rng);
+    const System<3> a = sys;
+    for (std::size_t k = 0; k < p.size(); ++k) {
+      sys.x[k] = a.x[p[k]];
+      sys.v[k] = a.v[p[k]];
+    }
+  }
   HybridSettings hs = hybrid_settings(scene);
   const SoftPlan plan = hybrid_preflight<3>(sys, hs);
   const double dt = plan.default_dt;
@@ -117,7 +132,7 @@ void soft_set(int repeats, int threads, double steps, bool verbose) {
     tT.push_back(rate_t(threads));
     hT.push_back(rate_h(threads));
   }
-  fmt::print("\nSoft set: dense soft gas, N 32768, {} substeps of {:.4g}, M particle-steps/s (medians of {})\n", steps, dt, repeats);
+  fmt::print("\nSoft set: dense soft gas{}, N 32768, {} substeps of {:.4g}, M particle-steps/s (medians of {})\n", shuffle ? " (ids scattered)" : "", steps, dt, repeats);
   fmt::print("| threads | TDM | hybrid soft set | hybrid / TDM |\n|---:|---:|---:|---:|\n");
   fmt::print("| 1 | {:.2f} | {:.2f} | {:.3f} |\n", median(t1) / 1e6, median(h1) / 1e6, median(h1) / median(t1));
   fmt::print("| {} | {:.2f} | {:.2f} | {:.3f} |\n", threads, median(tT) / 1e6, median(hT) / 1e6, median(hT) / median(tT));
@@ -128,7 +143,7 @@ void soft_set(int repeats, int threads, double steps, bool verbose) {
 
 int main(int argc, char** argv) {
   int repeats = 3, threads = 2;
-  bool verbose = false;
+  bool verbose = false, shuffle = false;
   double steps = 400.0;
   std::string only;
   for (int a = 1; a < argc; ++a) {
@@ -137,6 +152,7 @@ int main(int argc, char** argv) {
     else if (!std::strcmp(argv[a], "--threads") && a + 1 < argc) threads = std::atoi(argv[++a]);
     else if (!std::strcmp(argv[a], "--steps") && a + 1 < argc) steps = std::atof(argv[++a]);
     else if (!std::strcmp(argv[a], "--verbose")) verbose = true;
+    else if (!std::strcmp(argv[a], "--shuffle")) shuffle = true;
   }
   const std::string src = MATEP_SOURCE_DIR;
   fmt::print("Hybrid against the pure methods, whole runs on one core, medians of {} alternated pairs.\n\n", repeats);
@@ -200,6 +216,6 @@ int main(int argc, char** argv) {
                scene.end_time, median(tt), median(th), median(ratio), switches, hh, ht, 100.0 * (hh / ht - 1.0),
                100.0 * ke_err);
   }
-  if (only.empty() || only == "soft") soft_set(repeats, threads, steps, verbose);
+  if (only.empty() || only == "soft") soft_set(repeats, threads, steps, shuffle, verbose);
   return 0;
 }

@@ -38,6 +38,7 @@
 #include "engine/grid.hpp"
 #include "engine/huge_pages.hpp"
 #include "engine/impulse_tally.hpp"
+#include "engine/renumber.hpp"
 #include "engine/rough_rules.hpp"
 #include "engine/state_archive.hpp"
 #include "engine/wall_loads.hpp"
@@ -103,6 +104,10 @@ class EdmCore {
   // The collapse watch of hard particle i fired at a collision just resolved: true when the
   // extension takes i over instead of the run ending with status "collapse".
   bool ext_collapse(int) { return false; }
+
+  // The scene's id of each particle, when the engine runs its grains in another order
+  // (engine/renumber.hpp): the messages name grains by it.
+  void set_ids(IdMap ids) { ids_ = std::move(ids); }
 
   // Registers a system event; its id is the returned value (valid once init has run).
   int add_system_event(const char* name, std::function<bool(double)> fire) {
@@ -717,7 +722,7 @@ class EdmCore {
           "inelastic collapse: the collisions of particle {} came ever faster, its smoothed interval "
           "falling {:.1f} decades (from {:.3g} s to {:.3g} s) at t = {:.17g}; set run.tc > 0 (TC model) "
           "to make such collisions elastic, or use method = \"hybrid\"",
-          i, CollapseWatch::decades(c.watch.high - c.watch.fast), c.watch.high_seconds(),
+          ids_.user(static_cast<std::uint64_t>(i)), CollapseWatch::decades(c.watch.high - c.watch.fast), c.watch.high_seconds(),
           c.watch.fast_seconds(), now_);
     }
     c.last = now_;
@@ -740,7 +745,7 @@ class EdmCore {
           }
           cell_insert(i);
           status_ = "escaped";
-          message_ = escape_message(static_cast<std::uint64_t>(i), k, t, hot_[i].x[k]);
+          message_ = escape_message(ids_.user(static_cast<std::uint64_t>(i)), k, t, hot_[i].x[k]);
           return;
         }
         // The periodic wrap of a particle on the face it crosses: exactly one period.
@@ -1258,6 +1263,7 @@ class EdmCore {
   double virial_ = 0.0;
   double prev_ke_ = -1.0;
   std::string status_, message_;
+  IdMap ids_;  // the scene's ids (set_ids; empty: the engine's order is the scene's)
 
   std::vector<SystemEvent> system_;  // ids N_, N_ + 1, ...
   int sample_id_ = -1, end_id_ = -1, snapshot_id_ = -1, checkpoint_id_ = -1;

@@ -11,6 +11,7 @@
 #include <array>
 #include <atomic>
 #include <cmath>
+#include <memory>
 #include <stdexcept>
 #include <tuple>
 
@@ -20,6 +21,7 @@
 #include "engine/flatten.hpp"
 #include "engine/hybrid/rest.hpp"
 #include "engine/hybrid/switching.hpp"
+#include "engine/renumber.hpp"
 #include "engine/soft/contact_rows.hpp"
 #include "engine/soft/forces.hpp"
 #include "engine/soft/pair_list.hpp"
@@ -1105,10 +1107,10 @@ class HybridEngine final : public edm::EdmCore<D, CalendarQueue, HybridEngine<D>
       } else if (!(h.x[k] >= lo_[k] - h.R && h.x[k] <= hi_[k] + h.R) && status_.empty()) {
         status_ = std::isfinite(h.x[k]) ? "escaped" : "unstable";
         message_ = std::isfinite(h.x[k])
-                       ? escape_message(static_cast<std::uint64_t>(i), k, t, h.x[k])
+                       ? escape_message(this->ids_.user(static_cast<std::uint64_t>(i)), k, t, h.x[k])
                        : fmt::format("particle {} reached a non-finite position at t = {:.17g}: the substep {} is "
                                      "too long for the contacts (stability limit {:.6g})",
-                                     i, t, h_, plan_.max_stable_dt);
+                                     this->ids_.user(static_cast<std::uint64_t>(i)), t, h_, plan_.max_stable_dt);
       }
       c[k] = std::isfinite(h.x[k]) ? grid_.coord(k, h.x[k]) : 0;
       const double cw = grid_.width(k);
@@ -2099,7 +2101,23 @@ SoftPlan hybrid_preflight(const System<D>& system, const HybridSettings& setting
 template <int D>
 RunResult<D> run_hybrid(System<D> system, const EdmSettings& edm, const HybridSettings& hybrid,
                         const std::vector<Observer<D>*>& observers, const SoftPlan* plan) {
-  return HybridEngine<D>(std::move(system), edm, hybrid, plan, observers).run();
+  // The grains in space order (engine/renumber.hpp), everything reported in the scene's ids.
+  system.check_fixed();  // its message names the scene's ids
+  const std::vector<std::uint32_t> order = spatial_order(system);
+  reorder(system, order);
+  const IdMap ids(order);
+  std::vector<std::unique_ptr<UserIds<D>>> wrapped;
+  std::vector<Observer<D>*> obs;
+  for (Observer<D>* o : observers) {
+    if (!o) continue;
+    wrapped.push_back(std::make_unique<UserIds<D>>(*o, ids));
+    obs.push_back(wrapped.back().get());
+  }
+  HybridEngine<D> engine(std::move(system), edm, hybrid, plan, obs);
+  engine.set_ids(ids);
+  RunResult<D> r = engine.run();
+  to_user(r, ids);
+  return r;
 }
 
 template SoftPlan hybrid_preflight<2>(const System<2>&, const HybridSettings&);

@@ -1,0 +1,188 @@
+// The hybrid's particles in space order. The EDM core keeps its per-particle state in particle
+// order and the hybrid's soft set walks it in that order, so grains that touch should lie near
+// each other in memory: in a scene whose ids are scattered in space (grains placed at random, read
+// from a file, a shuffled lattice) each soft contact otherwise reads its partner's state from far
+// away, and the soft set ran at 0.48 of TDM's speed per particle-step on one thread (0.32 on two)
+// against 0.84 with the same grains in space order (bench/README.md, "Soft set"). So run_hybrid
+// renumbers the grains once, at the start, in cell order, and maps every id it reports back to the
+// scene's: the observers' records (UserIds), the final state (to_user), its messages (IdMap).
+// A grain an inlet inserts keeps its id (it comes after the initial ones).
+#pragma once
+
+#include <algorithm>
+#include <array>
+#include <cmath>
+#include <cstdint>
+#include <numeric>
+#include <utility>
+#include <vector>
+
+#include "engine/observer.hpp"
+#include "engine/result.hpp"
+#include "engine/system.hpp"
+
+namespace matep {
+
+// Engine index -> the scene's particle id. Indices beyond the initial grains (inlets') and an
+// empty map are their own ids.
+class IdMap {
+ public:
+  IdMap() = default;
+  explicit IdMap(std::vector<std::uint32_t> user) : user_(std::move(user)) {}
+  std::uint64_t user(std::uint64_t k) const { return k < user_.size() ? user_[k] : k; }
+  bool identity() const { return user_.empty(); }
+
+ private:
+  std::vector<std::uint32_t> user_;
+};
+
+// The initial grains in cell order: element k is the id of the grain that becomes particle k.
+// Cells are one largest diameter wide; the domain's longest axis varies slowest and its shortest
+// fastest (grains a cell apart along the slowest axis are then the fewest rows apart); within a
+// cell, by id. Positions are clamped into the domain (a grain may stick out on a closed axis).
+template <int D>
+std::vector<std::uint32_t> spatial_order(const System<D>& s) {
+  const std::size_t n = s.size();
+  std::vector<std::uint32_t> order(n);
+  std::iota(order.begin(), order.end(), 0u);
+  const double cell = 2.0 * s.radius_range().second;
+  if (n < 2 || !(cell > 0.0)) return order;
+  std::array<int, D> axis;  // slowest first
+  std::iota(axis.begin(), axis.end(), 0);
+  const Vec<D> ext = s.upper - s.lower;
+  std::stable_sort(axis.begin(), axis.end(), [&](int a, int b) { return ext[a] > ext[b]; });
+  std::array<std::uint64_t, D> count;
+  for (int k = 0; k < D; ++k) count[k] = static_cast<std::uint64_t>(std::max(1.0, std::ceil(ext[k] / cell)));
+  std::vector<std::uint64_t> key(n);
+  for (std::size_t i = 0; i < n; ++i) {
+    std::uint64_t c = 0;
+    for (const int k : axis) {
+      const double f = std::floor((s.x[i][k] - s.lower[k]) / cell);
+      const std::uint64_t ck = f <= 0.0 ? 0 : std::min<std::uint64_t>(count[k] - 1, static_cast<std::uint64_t>(f));
+      c = c * count[k] + ck;
+    }
+    key[i] = c;
+  }
+  std::stable_sort(order.begin(), order.end(), [&](std::uint32_t a, std::uint32_t b) { return key[a] < key[b]; });
+  return order;
+}
+
+// The system with its initial grains in `order` (spatial_order): every per-particle array.
+template <int D>
+void reorder(System<D>& s, const std::vector<std::uint32_t>& order) {
+  auto apply = [&](auto& a) {
+    if (a.empty()) return;
+    auto b = a;
+    for (std::size_t k = 0; k < order.size(); ++k) b[k] = a[order[k]];
+    a = std::move(b);
+  };
+  apply(s.x);
+  apply(s.v);
+  apply(s.w);
+  apply(s.radius);
+  apply(s.material);
+  apply(s.fixed);
+}
+
+// A per-particle state (a RunResult's final state, a Snapshot) from engine order to the scene's:
+// rows sorted by the scene's id, id filled where the engine filled it (grains are missing:
+// keep_present; otherwise row k is particle k in both orders, the map being one-to-one), soft-cluster
+// labels renumbered in order of first appearance (as the engine numbers them).
+template <class State>
+void rows_to_user(State& s, const IdMap& m) {
+  const std::size_t rows = s.x.size();
+  std::vector<std::uint64_t> uid(rows);
+  for (std::size_t r = 0; r < rows; ++r) uid[r] = m.user(s.id.empty() ? r : s.id[r]);
+  std::vector<std::size_t> p(rows);
+  std::iota(p.begin(), p.end(), std::size_t{0});
+  std::sort(p.begin(), p.end(), [&](std::size_t a, std::size_t b) { return uid[a] < uid[b]; });
+  auto apply = [&](auto& a) {
+    if (a.size() != rows) return;
+    auto b = a;
+    for (std::size_t r = 0; r < rows; ++r) b[r] = a[p[r]];
+    a = std::move(b);
+  };
+  apply(s.x);
+  apply(s.v);
+  apply(s.w);
+  apply(s.radius);
+  apply(s.mode);
+  if constexpr (requires { s.material; }) apply(s.material);
+  if constexpr (requires { s.cluster; }) {
+    apply(s.cluster);
+    std::vector<std::int32_t> relabel;
+    std::int32_t next = 0;
+    for (std::int32_t& c : s.cluster) {
+      if (c < 0) continue;
+      if (static_cast<std::size_t>(c) >= relabel.size()) relabel.resize(static_cast<std::size_t>(c) + 1, -1);
+      if (relabel[c] < 0) relabel[c] = next++;
+      c = relabel[c];
+    }
+  }
+  if (s.id.empty()) return;
+  s.id.clear();
+  for (std::size_t r = 0; r < rows; ++r) s.id.push_back(static_cast<std::uint32_t>(uid[p[r]]));
+}
+
+// A contact row's grains by the scene's ids, i < j kept for pairs (swapping them turns the force
+// on i into the force on the other grain).
+template <int D>
+void contact_to_user(ContactRow<D>& c, const IdMap& m) {
+  c.i = static_cast<std::uint32_t>(m.user(c.i));
+  if (c.j < 0) return;
+  c.j = static_cast<std::int64_t>(m.user(static_cast<std::uint64_t>(c.j)));
+  if (c.j < static_cast<std::int64_t>(c.i)) {
+    const std::uint32_t i = static_cast<std::uint32_t>(c.j);
+    c.j = c.i;
+    c.i = i;
+    c.fn = -c.fn;
+    c.ft = -c.ft;
+  }
+}
+
+// The final state of a run in the scene's ids.
+template <int D>
+void to_user(RunResult<D>& r, const IdMap& m) {
+  if (m.identity()) return;
+  rows_to_user(r, m);
+}
+
+// An observer that passes on what an engine running in another order reports, in the scene's ids.
+template <int D>
+class UserIds final : public Observer<D> {
+ public:
+  UserIds(Observer<D>& to, const IdMap& m) : to_(to), m_(m) {}
+  bool wants_collisions() const override { return to_.wants_collisions(); }
+  void on_collision(const CollisionRecord<D>& c) override {
+    CollisionRecord<D> u = c;
+    u.i = static_cast<std::uint32_t>(m_.user(c.i));
+    if (c.kind == EventKind::PairCollision) u.j = static_cast<std::uint32_t>(m_.user(c.j));
+    to_.on_collision(u);
+  }
+  void on_sample(const ThermoSample& s) override { to_.on_sample(s); }
+  bool wants_snapshots() const override { return to_.wants_snapshots(); }
+  bool wants_contacts() const override { return to_.wants_contacts(); }
+  void on_snapshot(const Snapshot<D>& s) override {
+    Snapshot<D> u = s;
+    rows_to_user(u, m_);
+    for (ContactRow<D>& c : u.contacts) contact_to_user(c, m_);
+    to_.on_snapshot(u);
+  }
+  void on_outflow(const OutflowRecord<D>& o) override {
+    OutflowRecord<D> u = o;
+    u.id = static_cast<std::uint32_t>(m_.user(o.id));
+    to_.on_outflow(u);
+  }
+  void on_inflow(const InflowRecord<D>& i) override {
+    InflowRecord<D> u = i;
+    u.id = static_cast<std::uint32_t>(m_.user(i.id));
+    to_.on_inflow(u);
+  }
+  void on_progress(double t, std::uint64_t events) override { to_.on_progress(t, events); }
+
+ private:
+  Observer<D>& to_;
+  const IdMap& m_;
+};
+
+}  // namespace matep

@@ -20,7 +20,7 @@
 namespace matep {
 
 inline constexpr char kCheckpointMagic[8] = {'M', 'A', 'T', 'E', 'P', 'C', 'K', 'P'};
-inline constexpr std::uint32_t kCheckpointVersion = 4;  // 2: an EDM particle holds its collapse watch; 3: the hybrid's threads; 4: the switching rule's impact speeds
+inline constexpr std::uint32_t kCheckpointVersion = 5;  // 2: an EDM particle holds its collapse watch; 3: the hybrid's threads; 4: the switching rule's impact speeds; 5: the hybrid's grains in space order (engine/renumber.hpp)
 inline constexpr const char* kCheckpointName = "checkpoint.bin";
 
 struct Checkpoint {

@@ -13,6 +13,7 @@
 #include <array>
 #include <cmath>
 #include <cstdint>
+#include <memory>
 #include <numeric>
 #include <utility>
 #include <vector>
@@ -184,5 +185,27 @@ class UserIds final : public Observer<D> {
   Observer<D>& to_;
   const IdMap& m_;
 };
+
+// Runs an engine on the system's grains in space order and reports in the scene's ids:
+// run(system, observers, ids) builds the engine on the reordered system with the wrapped
+// observers, hands it the ids (EdmCore::set_ids) and returns its result, which comes back here in
+// the scene's order.
+template <int D, class Run>
+RunResult<D> run_in_space_order(System<D> system, const std::vector<Observer<D>*>& observers, Run&& run) {
+  system.check_fixed();  // its message names the scene's ids
+  const std::vector<std::uint32_t> order = spatial_order(system);
+  reorder(system, order);
+  const IdMap ids(order);
+  std::vector<std::unique_ptr<UserIds<D>>> wrapped;
+  std::vector<Observer<D>*> obs;
+  for (Observer<D>* o : observers) {
+    if (!o) continue;
+    wrapped.push_back(std::make_unique<UserIds<D>>(*o, ids));
+    obs.push_back(wrapped.back().get());
+  }
+  RunResult<D> r = run(std::move(system), obs, ids);
+  to_user(r, ids);
+  return r;
+}
 
 }  // namespace matep

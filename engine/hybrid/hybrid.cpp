@@ -11,7 +11,6 @@
 #include <array>
 #include <atomic>
 #include <cmath>
-#include <memory>
 #include <stdexcept>
 #include <tuple>
 
@@ -2102,22 +2101,12 @@ template <int D>
 RunResult<D> run_hybrid(System<D> system, const EdmSettings& edm, const HybridSettings& hybrid,
                         const std::vector<Observer<D>*>& observers, const SoftPlan* plan) {
   // The grains in space order (engine/renumber.hpp), everything reported in the scene's ids.
-  system.check_fixed();  // its message names the scene's ids
-  const std::vector<std::uint32_t> order = spatial_order(system);
-  reorder(system, order);
-  const IdMap ids(order);
-  std::vector<std::unique_ptr<UserIds<D>>> wrapped;
-  std::vector<Observer<D>*> obs;
-  for (Observer<D>* o : observers) {
-    if (!o) continue;
-    wrapped.push_back(std::make_unique<UserIds<D>>(*o, ids));
-    obs.push_back(wrapped.back().get());
-  }
-  HybridEngine<D> engine(std::move(system), edm, hybrid, plan, obs);
-  engine.set_ids(ids);
-  RunResult<D> r = engine.run();
-  to_user(r, ids);
-  return r;
+  return run_in_space_order<D>(std::move(system), observers,
+                               [&](System<D>&& sys, const std::vector<Observer<D>*>& obs, const IdMap& ids) {
+                                 HybridEngine<D> engine(std::move(sys), edm, hybrid, plan, obs);
+                                 engine.set_ids(ids);
+                                 return engine.run();
+                               });
 }
 
 template SoftPlan hybrid_preflight<2>(const System<2>&, const HybridSettings&);

@@ -458,6 +458,12 @@ class HybridEngine final : public edm::EdmCore<D, CalendarQueue, HybridEngine<D>
     return soft_contact_time(*law, p, std::max(u, 1e-300));
   }
 
+  // Whether a collision of materials mi and mj at normal impact speed u loses energy: inelastic
+  // (restitution below 1 at u) or rough (friction takes energy from the sliding).
+  bool dissipates(int mi, int mj, double u) const {
+    return (!all_elastic_ && this->restitution(mi, mj, u) < 1.0) || (rough_ && rough_rules_.is_rough(mi, mj));
+  }
+
   // The switching rule (engine/hybrid/switching.hpp) at a pair collision of hard particles i and j,
   // both at time t and touching. Returns true when the pair (and its cluster) turned soft instead
   // of colliding.
@@ -472,7 +478,7 @@ class HybridEngine final : public edm::EdmCore<D, CalendarQueue, HybridEngine<D>
       return tc;
     };
     const double last_i = cold_[i].last, last_j = cold_[j].last;
-    Switch v = switch_.pair(i, j, t, last_i, last_j, contact_time, u);
+    Switch v = switch_.pair(i, j, t, last_i, last_j, contact_time, u, dissipates(cold_[i].mat, cold_[j].mat, u));
     if (v == Switch::Cost && !region_cheaper_soft(i, j, t)) v = Switch::Stay;
     if (v == Switch::Stay) return lookahead_pair(i, j, t, std::max(last_i, last_j), contact_time);
     const std::uint8_t reason = v == Switch::Stability ? kByStability : kByCost;
@@ -565,7 +571,7 @@ class HybridEngine final : public edm::EdmCore<D, CalendarQueue, HybridEngine<D>
     const double un = (hot_[i].v - c.velocity).dot(c.normal);
     // Resting on the wall (no normal speed left) is the zero-time limit of a bouncing sequence.
     Switch v = switch_.wall(i, t, cold_[i].last, !(un < 0.0), [&] { return contact_time_of(i, -1, w, -un); },
-                            std::max(-un, 0.0));
+                            std::max(-un, 0.0), dissipates(cold_[i].mat, sys_.walls[w].material, std::max(-un, 0.0)));
     if (v == Switch::Cost && !region_cheaper_soft(i, -1, t)) v = Switch::Stay;
     if (v == Switch::Stay) return false;
     make_pending(i, t, v == Switch::Stability ? kByStability : kByCost);
@@ -579,7 +585,7 @@ class HybridEngine final : public edm::EdmCore<D, CalendarQueue, HybridEngine<D>
     min_image(r);
     const double un = hot_[i].v.dot(r) / r.norm();
     Switch v = switch_.wall(i, t, cold_[i].last, !(un < 0.0), [&] { return contact_time_of(i, j, -1, -un); },
-                            std::max(-un, 0.0));
+                            std::max(-un, 0.0), dissipates(cold_[i].mat, cold_[j].mat, std::max(-un, 0.0)));
     if (v == Switch::Cost && !region_cheaper_soft(i, -1, t)) v = Switch::Stay;
     if (v == Switch::Stay) return false;
     make_pending(i, t, v == Switch::Stability ? kByStability : kByCost);

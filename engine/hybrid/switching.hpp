@@ -12,7 +12,11 @@
 //    then, from the 8th on, an exponential average with weight 1/8, and it counts from the 4th
 //    interval: a few short intervals, common between recollisions in a dense gas and right after
 //    a grain returns hard next to others, do not carry it across;
-//  * a wall collision without normal approach (resting on the wall) counts as unstable.
+//  * a wall collision without normal approach (resting on the wall) counts as unstable;
+//  * a collision that dissipates nothing (restitution 1 at its impact speed, smooth) ends a rapid
+//    run: inelastic collapse needs dissipation (McNamara and Young 1992: the collision count
+//    stays finite at e = 1), and a dense elastic gas, which EDM resolves exactly, turned grains
+//    soft by the run test alone (charts/README.md, "the pressure of an elastic dense gas").
 // The rule also remembers each particle's two most recent partners, whose collisions within the
 // cluster window make them turn soft together (cluster()).
 #pragma once
@@ -64,11 +68,15 @@ class SwitchRule {
   // A pair collision of hard particles i and j at t; last_i, last_j: the times of their previous
   // collisions (-infinity if none); contact_time(): t_c of this impact (called only when needed).
   // u: the impact's normal speed (0: not known; the run then goes by the intervals alone).
+  // dissipative: the collision loses energy (false: elastic and smooth; it ends both runs).
   template <class Tc>
-  Switch pair(int i, int j, double t, double last_i, double last_j, Tc&& contact_time, double u = 0.0) {
+  Switch pair(int i, int j, double t, double last_i, double last_j, Tc&& contact_time, double u = 0.0,
+              bool dissipative = true) {
     const double since = t - (last_i > last_j ? last_i : last_j);
     bool stability = false;
-    if (since < p_.hysteresis) {
+    if (!dissipative) {
+      rapid_[i] = rapid_[j] = 0;
+    } else if (since < p_.hysteresis) {
       const double window = p_.stability * contact_time();
       stability = rapid(i, t, last_i, window, u) | rapid(j, t, last_j, window, u);
     }
@@ -84,10 +92,12 @@ class SwitchRule {
 
   // A wall collision of hard i at t (resting: no normal approach left).
   template <class Tc>
-  Switch wall(int i, double t, double last_i, bool resting, Tc&& contact_time, double u = 0.0) {
+  Switch wall(int i, double t, double last_i, bool resting, Tc&& contact_time, double u = 0.0,
+              bool dissipative = true) {
     const double since = t - last_i;
     bool stability = resting;
-    if (!stability && since < p_.hysteresis) stability = rapid(i, t, last_i, p_.stability * contact_time(), u);
+    if (!dissipative && !resting) rapid_[i] = 0;
+    else if (!stability && since < p_.hysteresis) stability = rapid(i, t, last_i, p_.stability * contact_time(), u);
     if (!(since < p_.hysteresis)) rapid_[i] = 0;
     note_interval(i, t, last_i, u);
     if (stability) return Switch::Stability;

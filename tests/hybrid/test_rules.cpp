@@ -193,6 +193,51 @@ TEST(SwitchRule, ARapidRunNeedsShrinkingImpactSpeedsToo) {
   EXPECT_EQ(w.rapid_count(0), 2);  // 0.95 > 0.9 started a new run at the second
 }
 
+TEST(SwitchRule, AnElasticCollisionEndsARapidRun) {
+  // The shrinking run of the test above completes at its third rapid collision when the
+  // collisions dissipate; elastic ones (no energy lost: no collapse possible) never count, and
+  // one elastic collision inside a run starts it over. The wall rule alike, resting excepted.
+  const double dts[] = {0.018, 0.016, 0.014, 0.012, 0.010};
+  SwitchRule q = rule();
+  double t = 1.0, last = -kNever, u = 1.0;
+  q.pair(0, 1, t, last, last, tc, u, false);
+  last = t;
+  for (int k = 0; k < 5; ++k) {
+    t += dts[k];
+    u *= 0.8;
+    EXPECT_EQ(q.pair(0, 1, t, last, last, tc, u, false), Switch::Stay) << k;
+    EXPECT_EQ(q.rapid_count(0), 0) << k;
+    last = t;
+  }
+  SwitchRule m = rule();  // dissipative, dissipative, elastic, dissipative, dissipative: no run of 3
+  t = 1.0;
+  last = -kNever;
+  u = 1.0;
+  m.pair(0, 1, t, last, last, tc, u);
+  last = t;
+  for (int k = 0; k < 4; ++k) {
+    t += dts[k];
+    u *= 0.8;
+    EXPECT_EQ(m.pair(0, 1, t, last, last, tc, u, k != 2), Switch::Stay) << k;
+    last = t;
+  }
+  EXPECT_EQ(m.rapid_count(0), 1);
+  t += dts[4];
+  u *= 0.8;
+  EXPECT_EQ(m.pair(0, 1, t, last, last, tc, u), Switch::Stay);  // the second of the new run
+  SwitchRule w = rule();
+  t = 1.0;
+  last = -kNever;
+  w.wall(0, t, last, false, tc, 1.0, false);
+  last = t;
+  for (int k = 0; k < 4; ++k) {
+    t += dts[k];
+    EXPECT_EQ(w.wall(0, t, last, false, tc, 0.9 - 0.1 * k, false), Switch::Stay) << k;
+    last = t;
+  }
+  EXPECT_EQ(w.wall(0, t + 0.01, last, true, tc, 0.0, false), Switch::Stability);  // resting on it
+}
+
 TEST(SwitchRule, RestingOnAWallIsUnstableAndClusterFollowsRecentPartners) {
   SwitchRule r = rule();
   EXPECT_EQ(r.wall(0, 1.0, -kNever, /*resting=*/true, tc), Switch::Stability);

@@ -5,6 +5,7 @@ at several settings of its stability rule; wall time against error from an analy
     /usr/bin/python3 tools/bench_accuracy.py ball --matep build/matep --out charts/
     /usr/bin/python3 tools/bench_accuracy.py gas  --matep build/matep --out charts/
     /usr/bin/python3 tools/bench_accuracy.py pour --matep build/matep --out charts/
+    /usr/bin/python3 tools/bench_accuracy.py pressure --matep build/matep --out charts/
 
 writes charts/accuracy_CASE.csv (case, method, setting, wall_seconds, error, status, ...) and
 charts/accuracy_CASE.png (relative error against wall seconds, log-log). --quick runs tiny
@@ -38,6 +39,17 @@ Cases and their error measures (README: "Speed and accuracy"):
   reference - 1|; noise = the standard error of the reference's seed mean, relative (the chart's
   dashed line).
   EDM cannot settle a bed: it ends in collapse (a row with that status).
+* pressure: an elastic dense gas in equilibrium, cases/soft_gas.toml with e = 1 at packing
+  fraction 0.4 (4096 spheres on its simple cubic lattice, Maxwellian at T = 1 from run.seed = 1..3;
+  the lattice melts within the first time unit), to t = 10. The observable is a property of the
+  ensemble, not of one trajectory: the compressibility factor Z = P/(n T), each thermo row's
+  pressure over n times its temperature (rows every 0.05), averaged over t >= 2 and over the
+  seeds. Hard spheres have one answer, which EDM measures exactly up to its statistical error
+  (about 0.1 % here); soft spheres answer with the pressure of their softness and of their step.
+  error = |Z / Z_CS - 1| against the Carnahan-Starling equation of state (docs/references.md
+  §2.2: Z_CS(0.4) = 6.9259, itself within a few tenths of a percent of hard-sphere simulations
+  there); error_vs_edm = |Z / Z_EDM - 1| against EDM's seed mean (the hard-sphere answer of the
+  same starts); noise = the standard error of EDM's seed mean, relative (the chart's dashed line).
 
 wall_seconds is summary.json's wall time (setup and outputs included): for the ball the median of
 --repeat runs (default 5) made without thermo rows (45 000 rows cost more than a coarse TDM run;
@@ -234,6 +246,53 @@ def pour_answer(case, runs):
 
 
 # ---------------------------------------------------------------------------------------------
+# The pressure of an elastic dense gas
+
+
+def carnahan_starling(phi: float) -> float:
+    """docs/references.md §2.2: P/(nT) = (1 + phi + phi^2 - phi^3)/(1 - phi)^3 (3D hard spheres)."""
+    return (1.0 + phi + phi * phi - phi ** 3) / (1.0 - phi) ** 3
+
+
+def pressure_case(quick: bool) -> dict:
+    scene = CASES / "soft_gas.toml"
+    # cases/soft_gas.toml: unit diameter and mass, linear k = 9e4, a simple cubic lattice at T = 1.
+    phi = 0.4
+    N, end, start = (4096, 10.0, 2.0) if not quick else (216, 1.0, 0.5)
+    L = (N * math.pi / 6.0 / phi) ** (1.0 / 3.0)
+    sets = {"particles.gas.count": N, "domain.upper": [L, L, L], "material.grain.restitution": 1.0,
+            "run.end_time": end, "output.thermo_interval": 0.05}
+    return {"name": "pressure", "scene": scene, "sets": sets, "n": N / L ** 3, "start": start,
+            "seeds": [1, 2] if quick else [1, 2, 3], "reference": carnahan_starling(phi),
+            "tdm": [10, 50] if quick else TDM_DIVISORS, "hybrid": [10] if quick else HYBRID_K,
+            "title": f"elastic dense gas ({N} spheres, e = 1, phi = {phi}): Z = P/(nT) over t = {start:g}-{end:g} "
+                     f"vs Carnahan-Starling {carnahan_starling(phi):.4f}",
+            "measure": pressure_answer}
+
+
+def compressibility(case, run) -> float:
+    """The mean over the thermo rows with t >= start of P/(n T)."""
+    z = [r["pressure"] / (case["n"] * r["temperature"]) for r in run.thermo()
+         if r["time"] >= case["start"] - 1e-12 and r["temperature"] > 0.0]
+    return statistics.fmean(z) if z else math.nan
+
+
+def pressure_answer(case, runs):
+    """(seed mean of Z, |Z / Z_CS - 1|, {error_vs_edm, noise}); the first method measured (EDM)
+    gives the hard-sphere answer and the floor."""
+    if any(r.status != "ok" for r in runs):
+        return math.nan, math.nan, {}
+    z = [compressibility(case, r) for r in runs]
+    mean = statistics.fmean(z)
+    extra = {}
+    if "edm_z" not in case:
+        case["edm_z"] = mean
+        extra["noise"] = statistics.stdev(z) / math.sqrt(len(z)) / mean if len(z) > 1 else math.nan
+    extra["error_vs_edm"] = abs(mean / case["edm_z"] - 1.0)
+    return mean, abs(mean / case["reference"] - 1.0), extra
+
+
+# ---------------------------------------------------------------------------------------------
 
 
 def run_case(case, matep, work: Path, repeat: int, log) -> list[dict]:
@@ -343,6 +402,12 @@ def plot(case, rows, png: Path):
         skipped = draw(ax, rows, "error", "|<2<z>> / reference - 1|", case["title"] +
                        f"\n<2<z>>: mean of {seeds} random placements; reference: TDM at t_c/{case['tdm'][0]}",
                        STYLE)
+    elif case["name"] == "pressure":
+        fig, (ax, bx) = plt.subplots(1, 2, figsize=(13.0, 6.2))
+        seeds = len(case["seeds"])
+        skipped = draw(ax, rows, "error", "|Z / Z_CS - 1|", case["title"] + f"\nZ: mean of {seeds} starts", STYLE)
+        draw(bx, rows, "error_vs_edm", "|Z / Z_EDM - 1|",
+             "the same against EDM from the same starts (the hard-sphere answer)", ["tdm", "hybrid"])
     else:
         fig, (ax, bx) = plt.subplots(1, 2, figsize=(13.0, 6.2))
         seeds = len(case["seeds"])
@@ -366,7 +431,7 @@ def plot(case, rows, png: Path):
 
 def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    ap.add_argument("case", choices=["ball", "gas", "pour"])
+    ap.add_argument("case", choices=["ball", "gas", "pour", "pressure"])
     ap.add_argument("--matep", default="build/matep", help="the matep executable (default build/matep)")
     ap.add_argument("--out", default="charts", help="folder for accuracy_CASE.csv and .png (default charts/)")
     ap.add_argument("--quick", action="store_true", help="tiny versions, a few seconds (the test suite's mode)")
@@ -375,7 +440,7 @@ def main(argv=None):
     ap.add_argument("--work", default=None, help="keep the runs' outputs in this folder (default: a temporary one)")
     ap.add_argument("--plot-only", action="store_true", help="redraw the PNG from the CSV in --out, running nothing")
     args = ap.parse_args(argv)
-    case = {"ball": ball_case, "gas": gas_case, "pour": pour_case}[args.case](args.quick)
+    case = {"ball": ball_case, "gas": gas_case, "pour": pour_case, "pressure": pressure_case}[args.case](args.quick)
     out = Path(args.out)
     csv_path, png_path = out / f"accuracy_{args.case}.csv", out / f"accuracy_{args.case}.png"
     if args.plot_only:

@@ -1,5 +1,5 @@
 #!/usr/bin/python3
-"""ctest for the chart tools: runs tools/bench_accuracy.py (its three cases) or tools/stability_map.py
+"""ctest for the chart tools: runs tools/bench_accuracy.py (its four cases) or tools/stability_map.py
 in --quick mode from the command line, as a user would, and checks the CSV behind each chart:
 one row per method and setting (cell), finite wall time and error wherever a run was made, and
 rows marked "refused" only where the CLI really refuses (the hybrid method while it is not
@@ -180,6 +180,37 @@ def check_map(matep, out, hybrid_refused):
     check_png(out / "stability_map_ratio.png")
 
 
+def check_pressure(matep, out, hybrid_refused):
+    """The elastic dense gas's rows: EDM's Z = P/(nT) near Carnahan-Starling's, every run with a
+    finite Z, and the coarse soft step's systematic error standing clear of the noise (the point of
+    the case: it ranks methods and steps)."""
+    run_tool([REPO / "tools/bench_accuracy.py", "pressure", "--matep", matep, "--out", out, "--quick"])
+    case = bench_accuracy.pressure_case(True)
+    rows = read_csv(out / "accuracy_pressure.csv")
+    expected = [("edm", "exact")] + [("tdm", f"t_c/{n}") for n in case["tdm"]] + \
+               [("hybrid", f"k={k}") for k in case["hybrid"]]
+    got = {}
+    for method, setting in expected:
+        hits = [r for r in rows if (r["method"], r["setting"]) == (method, setting)]
+        if not expect(len(hits) == 1, f"pressure: {len(hits)} rows for {method} {setting}, expected 1"):
+            continue
+        r = hits[0]
+        if r["status"] == "refused":
+            expect(method == "hybrid" and hybrid_refused, f"pressure: {method} {setting} refused: {r['message']}")
+            continue
+        expect(r["status"] == "ok" and num(r["answer"]) > 1.0 and math.isfinite(num(r["error_vs_edm"])),
+               f"pressure: {method} {setting}: {r}")
+        got[(method, setting)] = r
+    edm = got.get(("edm", "exact"))
+    if edm:  # 216 spheres over half a time unit, two starts: Z within 4 % of the equation of state
+        expect(num(edm["error"]) < 0.04 and math.isfinite(num(edm["noise"])),
+               f"pressure: EDM's Z {edm['answer']} against Carnahan-Starling {case['reference']}")
+    coarse = got.get(("tdm", f"t_c/{case['tdm'][0]}"))
+    if coarse:  # t_c/10: the step's error is several per cent, far above the quick run's noise
+        expect(num(coarse["error_vs_edm"]) > 0.03, f"pressure: TDM at t_c/10 within 3 % of EDM: {coarse}")
+    check_png(out / "accuracy_pressure.png")
+
+
 def main():
     ap = argparse.ArgumentParser()
     ap.add_argument("which", choices=["accuracy", "map"])
@@ -195,6 +226,7 @@ def main():
     if args.which == "accuracy":
         check_accuracy(matep, out, hybrid_refused)
         check_pour(matep, out, hybrid_refused)
+        check_pressure(matep, out, hybrid_refused)
     else:
         check_map(matep, out, hybrid_refused)
     if failures:

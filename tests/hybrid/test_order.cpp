@@ -75,6 +75,62 @@ TEST(SpatialOrder, TheMapBackRestoresTheScenesRowsAndContacts) {
   EXPECT_EQ(c.fn, Vec<3>(-1.0, 0.0, 0.0));
 }
 
+TEST(SpatialOrder, ObserversHearTheScenesIdsAndClusterLabelsInTheirOrder) {
+  // Engine order 0 1 2 3 = scene ids 3 1 0 2 (inlet grains from 4 on keep theirs).
+  struct Sink final : Observer<3> {
+    Snapshot<3> snap;
+    std::vector<std::uint32_t> out, in;
+    std::vector<std::pair<std::uint32_t, std::uint32_t>> pairs;
+    bool wants_collisions() const override { return true; }
+    void on_collision(const CollisionRecord<3>& c) override { pairs.emplace_back(c.i, c.j); }
+    bool wants_snapshots() const override { return true; }
+    void on_snapshot(const Snapshot<3>& s) override { snap = s; }
+    void on_outflow(const OutflowRecord<3>& o) override { out.push_back(o.id); }
+    void on_inflow(const InflowRecord<3>& i) override { in.push_back(i.id); }
+  } sink;
+  const IdMap ids({3, 1, 0, 2});
+  UserIds<3> u(sink, ids);
+  EXPECT_TRUE(u.wants_collisions() && u.wants_snapshots());
+  CollisionRecord<3> pc;
+  pc.kind = EventKind::PairCollision;
+  pc.i = 0;
+  pc.j = 2;
+  u.on_collision(pc);
+  CollisionRecord<3> wc;
+  wc.kind = EventKind::WallCollision;
+  wc.i = 3;
+  wc.j = 1;  // the wall's index: not a grain
+  u.on_collision(wc);
+  EXPECT_EQ(sink.pairs, (std::vector<std::pair<std::uint32_t, std::uint32_t>>{{3, 0}, {2, 1}}));
+  OutflowRecord<3> o;
+  o.id = 1;
+  u.on_outflow(o);
+  InflowRecord<3> in;
+  in.id = 5;
+  u.on_inflow(in);
+  EXPECT_EQ(sink.out, std::vector<std::uint32_t>{1});
+  EXPECT_EQ(sink.in, std::vector<std::uint32_t>{5});
+  // A snapshot whose engine grain 1 (scene id 1) has left: rows by scene id, clusters renumbered
+  // in the order the scene's ids meet them.
+  Snapshot<3> s;
+  s.id = {0, 2, 3, 4};
+  for (double z : {0.0, 2.0, 3.0, 4.0}) {
+    s.x.push_back(Vec<3>(0.0, 0.0, z));
+    s.v.push_back(Vec<3>::Zero());
+    s.radius.push_back(0.5);
+  }
+  s.mode = {1, 0, 1, 1};
+  s.cluster = {0, -1, 1, 1};
+  u.on_snapshot(s);
+  EXPECT_EQ(sink.snap.id, (std::vector<std::uint32_t>{0, 2, 3, 4}));
+  EXPECT_EQ(sink.snap.x[0].z(), 2.0);  // scene id 0 = engine 2
+  EXPECT_EQ(sink.snap.x[1].z(), 3.0);  // scene id 2 = engine 3
+  EXPECT_EQ(sink.snap.x[2].z(), 0.0);  // scene id 3 = engine 0
+  EXPECT_EQ(sink.snap.x[3].z(), 4.0);  // an inlet grain
+  EXPECT_EQ(sink.snap.mode, (std::vector<std::uint8_t>{0, 1, 1, 1}));
+  EXPECT_EQ(sink.snap.cluster, (std::vector<std::int32_t>{-1, 0, 1, 0}));
+}
+
 struct Recorder final : Observer<3> {
   std::vector<CollisionRecord<3>> coll;
   std::vector<Snapshot<3>> snaps;

@@ -196,10 +196,16 @@ TEST(HybridSwitch, AGroupOfGrainsWithinEachOthersSkinReturnsHardTogether) {
 // at any impact speed, a few seeds drew most of the gas into the soft set and held it there (39 %
 // of the particle-steps soft, 28 x EDM's time); the grains now join just before a touch, a
 // rattler stays hard while its cage collides slowly, and the soft share stays small.
-TEST(HybridSwitch, ADenseGasThatEdmRunsStaysMostlyHard) {
-  System<3> s = test::lattice_gas<3>(8, 0.5, 1.0, 0.5, 7);
+// 512 spheres on a simple cubic lattice at T = 1 with the map's soft law (linear, k = 9e4).
+System<3> linear_lattice_gas(double phi, double e, std::uint64_t seed) {
+  System<3> s = test::lattice_gas<3>(8, phi, 1.0, e, seed);
   s.materials[0].contact = "linear";
   s.materials[0].stiffness = 9.0e4;
+  return s;
+}
+
+TEST(HybridSwitch, ADenseGasThatEdmRunsStaysMostlyHard) {
+  const System<3> s = linear_lattice_gas(0.5, 0.5, 7);
   EdmSettings es;
   es.end_time = 5.0;
   const RunResult<3> e = run_edm<3>(s, es, QueueKind::Calendar);
@@ -218,10 +224,9 @@ TEST(HybridSwitch, ADenseGasThatEdmRunsStaysMostlyHard) {
 TEST(HybridSwitch, AnElasticDenseGasStaysHardAsInEdm) {
   // 512 elastic spheres at phi = 0.4: no collision loses energy, nothing can collapse, and EDM
   // gives the exact hard-sphere answer. Before the stability rule ignored elastic collisions this
-  // gas made 2 837 switches to soft by t = 5 (the shrinking-run test alone), at 3.7 x EDM's time.
-  System<3> s = test::lattice_gas<3>(8, 0.4, 1.0, 1.0, 1);
-  s.materials[0].contact = "linear";
-  s.materials[0].stiffness = 9.0e4;
+  // gas made 2 837 switches to soft by t = 5 (grains the rule turned soft, then those captured
+  // next to them), at 3.7 x EDM's time.
+  const System<3> s = linear_lattice_gas(0.4, 1.0, 1);
   EdmSettings es;
   es.end_time = 5.0;
   HybridSettings hs;

@@ -722,8 +722,8 @@ class EdmCore {
           "inelastic collapse: the collisions of particle {} came ever faster, its smoothed interval "
           "falling {:.1f} decades (from {:.3g} s to {:.3g} s) at t = {:.17g}; set run.tc > 0 (TC model) "
           "to make such collisions elastic, or use method = \"hybrid\"",
-          ids_.user(static_cast<std::uint64_t>(i)), CollapseWatch::decades(c.watch.high - c.watch.fast), c.watch.high_seconds(),
-          c.watch.fast_seconds(), now_);
+          ids_.user(static_cast<std::uint64_t>(i)), CollapseWatch::decades(c.watch.high - c.watch.fast),
+          c.watch.high_seconds(), c.watch.fast_seconds(), now_);
     }
     c.last = now_;
   }

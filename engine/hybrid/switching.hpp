@@ -14,9 +14,10 @@
 //    a grain returns hard next to others, do not carry it across;
 //  * a wall collision without normal approach (resting on the wall) counts as unstable;
 //  * a collision that dissipates nothing (restitution 1 at its impact speed, smooth) ends a rapid
-//    run: inelastic collapse needs dissipation (McNamara and Young 1992: the collision count
-//    stays finite at e = 1), and a dense elastic gas, which EDM resolves exactly, turned grains
-//    soft by the run test alone (charts/README.md, "the pressure of an elastic dense gas").
+//    run: inelastic collapse needs dissipation (docs/references.md §3.1: the number of grains
+//    that can collapse grows without bound as e -> 1), and a dense elastic gas, which EDM
+//    resolves exactly, turned grains soft by the run test alone (charts/README.md, "the pressure
+//    of an elastic dense gas").
 // The rule also remembers each particle's two most recent partners, whose collisions within the
 // cluster window make them turn soft together (cluster()).
 #pragma once

@@ -2,8 +2,8 @@
 // order and the hybrid's soft set walks it in that order, so grains that touch should lie near
 // each other in memory: in a scene whose ids are scattered in space (grains placed at random, read
 // from a file, a shuffled lattice) each soft contact otherwise reads its partner's state from far
-// away, and the soft set ran at 0.48 of TDM's speed per particle-step on one thread (0.32 on two)
-// against 0.84 with the same grains in space order (bench/README.md, "Soft set"). So run_hybrid
+// away: a dense soft gas with its ids shuffled ran at 0.48 of TDM's speed per particle-step on one
+// thread (0.35 on two), 0.66 (0.74) in space order (bench/README.md, "Where the hybrid stands"). So run_hybrid
 // renumbers the grains once, at the start, in cell order, and maps every id it reports back to the
 // scene's: the observers' records (UserIds), the final state (to_user), its messages (IdMap).
 // A grain an inlet inserts keeps its id (it comes after the initial ones).
@@ -68,21 +68,25 @@ std::vector<std::uint32_t> spatial_order(const System<D>& s) {
   return order;
 }
 
+// a[k] = a[from[k]] for every k, for an array with one element per index of `from` (an array of
+// another size, such as an empty optional one, is left as it is).
+template <class V, class I>
+void gather(V& a, const std::vector<I>& from) {
+  if (a.size() != from.size()) return;
+  V b = a;
+  for (std::size_t k = 0; k < from.size(); ++k) b[k] = a[from[k]];
+  a = std::move(b);
+}
+
 // The system with its initial grains in `order` (spatial_order): every per-particle array.
 template <int D>
 void reorder(System<D>& s, const std::vector<std::uint32_t>& order) {
-  auto apply = [&](auto& a) {
-    if (a.empty()) return;
-    auto b = a;
-    for (std::size_t k = 0; k < order.size(); ++k) b[k] = a[order[k]];
-    a = std::move(b);
-  };
-  apply(s.x);
-  apply(s.v);
-  apply(s.w);
-  apply(s.radius);
-  apply(s.material);
-  apply(s.fixed);
+  gather(s.x, order);
+  gather(s.v, order);
+  gather(s.w, order);
+  gather(s.radius, order);
+  gather(s.material, order);
+  gather(s.fixed, order);
 }
 
 // A per-particle state (a RunResult's final state, a Snapshot) from engine order to the scene's:
@@ -97,20 +101,14 @@ void rows_to_user(State& s, const IdMap& m) {
   std::vector<std::size_t> p(rows);
   std::iota(p.begin(), p.end(), std::size_t{0});
   std::sort(p.begin(), p.end(), [&](std::size_t a, std::size_t b) { return uid[a] < uid[b]; });
-  auto apply = [&](auto& a) {
-    if (a.size() != rows) return;
-    auto b = a;
-    for (std::size_t r = 0; r < rows; ++r) b[r] = a[p[r]];
-    a = std::move(b);
-  };
-  apply(s.x);
-  apply(s.v);
-  apply(s.w);
-  apply(s.radius);
-  apply(s.mode);
-  if constexpr (requires { s.material; }) apply(s.material);
+  gather(s.x, p);
+  gather(s.v, p);
+  gather(s.w, p);
+  gather(s.radius, p);
+  gather(s.mode, p);
+  if constexpr (requires { s.material; }) gather(s.material, p);
   if constexpr (requires { s.cluster; }) {
-    apply(s.cluster);
+    gather(s.cluster, p);
     std::vector<std::int32_t> relabel;
     std::int32_t next = 0;
     for (std::int32_t& c : s.cluster) {

@@ -5,6 +5,7 @@
 #include <gtest/gtest.h>
 
 #include <algorithm>
+#include <numeric>
 #include <random>
 #include <string>
 #include <vector>
@@ -150,7 +151,7 @@ TEST(HybridIds, ADiluteGasWithScatteredIdsMatchesEdmGrainByGrain) {
   std::mt19937 rng(2);
   std::shuffle(s.x.begin(), s.x.end(), rng);
   std::vector<std::uint32_t> same(s.size());
-  for (std::size_t k = 0; k < same.size(); ++k) same[k] = static_cast<std::uint32_t>(k);
+  std::iota(same.begin(), same.end(), 0u);
   ASSERT_NE(spatial_order(s), same);  // the hybrid runs the grains in another order than EDM
   EdmSettings es;
   es.end_time = 2.0;

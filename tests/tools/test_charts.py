@@ -59,20 +59,27 @@ def run_tool(args):
         raise SystemExit(f"FAIL: {' '.join(cmd)} exited with {p.returncode}")
 
 
+def case_rows(name, case, rows):
+    """(method, setting, row) for each method and setting the case runs (EDM, then TDM's steps, then
+    the hybrid's settings), checking that the CSV has exactly one row for each."""
+    expected = [("edm", "exact")] + [("tdm", f"t_c/{n}") for n in case["tdm"]] + \
+               [("hybrid", f"k={k}") for k in case["hybrid"]]
+    found = []
+    for method, setting in expected:
+        got = [r for r in rows if (r["method"], r["setting"]) == (method, setting)]
+        if expect(len(got) == 1, f"{name}: {len(got)} rows for {method} {setting}, expected 1"):
+            found.append((method, setting, got[0]))
+    return found
+
+
 def check_accuracy(matep, out, hybrid_refused):
     for name, make in (("ball", bench_accuracy.ball_case), ("gas", bench_accuracy.gas_case)):
         run_tool([REPO / "tools/bench_accuracy.py", name, "--matep", matep, "--out", out, "--quick"])
         case = make(True)
-        expected = [("edm", "exact")] + [("tdm", f"t_c/{n}") for n in case["tdm"]] + \
-                   [("hybrid", f"k={k}") for k in case["hybrid"]]
         rows = read_csv(out / f"accuracy_{name}.csv")
         expect(list(rows[0].keys())[:6] == ["case", "method", "setting", "wall_seconds", "error", "status"],
                f"{name}: CSV columns {list(rows[0].keys())}")
-        for method, setting in expected:
-            got = [r for r in rows if (r["method"], r["setting"]) == (method, setting)]
-            if not expect(len(got) == 1, f"{name}: {len(got)} rows for {method} {setting}, expected 1"):
-                continue
-            r = got[0]
+        for method, setting, r in case_rows(name, case, rows):
             wall, err = num(r["wall_seconds"]), num(r["error"])
             if r["status"] == "refused":
                 expect(method == "hybrid" and hybrid_refused,
@@ -98,13 +105,7 @@ def check_pour(matep, out, hybrid_refused):
     case = bench_accuracy.pour_case(True)
     rows = read_csv(out / "accuracy_pour.csv")
     ref = f"t_c/{case['tdm'][0]}"
-    expected = [("edm", "exact")] + [("tdm", f"t_c/{n}") for n in case["tdm"]] + \
-               [("hybrid", f"k={k}") for k in case["hybrid"]]
-    for method, setting in expected:
-        got = [r for r in rows if (r["method"], r["setting"]) == (method, setting)]
-        if not expect(len(got) == 1, f"pour: {len(got)} rows for {method} {setting}, expected 1"):
-            continue
-        r = got[0]
+    for method, setting, r in case_rows("pour", case, rows):
         err = num(r["error"])
         if method == "edm":
             expect(r["status"] == "collapse", f"pour: EDM should collapse in the settling bed: {r['status']}")
@@ -187,14 +188,8 @@ def check_pressure(matep, out, hybrid_refused):
     run_tool([REPO / "tools/bench_accuracy.py", "pressure", "--matep", matep, "--out", out, "--quick"])
     case = bench_accuracy.pressure_case(True)
     rows = read_csv(out / "accuracy_pressure.csv")
-    expected = [("edm", "exact")] + [("tdm", f"t_c/{n}") for n in case["tdm"]] + \
-               [("hybrid", f"k={k}") for k in case["hybrid"]]
     got = {}
-    for method, setting in expected:
-        hits = [r for r in rows if (r["method"], r["setting"]) == (method, setting)]
-        if not expect(len(hits) == 1, f"pressure: {len(hits)} rows for {method} {setting}, expected 1"):
-            continue
-        r = hits[0]
+    for method, setting, r in case_rows("pressure", case, rows):
         if r["status"] == "refused":
             expect(method == "hybrid" and hybrid_refused, f"pressure: {method} {setting} refused: {r['message']}")
             continue

@@ -41,6 +41,8 @@ struct HybridSettings {
   double hysteresis = 0.0;  // contact-free time before release; 0 = 10 k t_c (of the plan's t_c)
   double skin = 0.001;      // least capture distance, as a fraction of the smallest diameter
   double cost_ratio = 10.0; // cost of one EDM collision per particle / cost of one TDM particle-step
+  bool cost_measured = false;  // the crossover follows the costs measured during the run, starting
+                               // from cost_ratio (engine/hybrid/cost.hpp; not reproducible run to run)
   double rest_speed = 0.0;  // sleeping threshold [m/s]; 0 = no sleeping
   double rest_time = 0.0;   // how long a grain must stay below rest_speed; 0 = 20 t_c
   int threads = 1;          // the soft set's threads (0: all cores, OMP_NUM_THREADS respected); a run

@@ -3,6 +3,7 @@
 #pragma once
 
 #include <cstdint>
+#include <limits>
 #include <optional>
 #include <string>
 #include <string_view>
@@ -81,6 +82,15 @@ struct HybridStats {
   double rest_speed = 0.0, rest_time = 0.0;
 };
 
+// The hybrid's measured costs (engine/hybrid/cost.hpp), at the end of the run: NaN where a cost
+// was never measured (no soft grain, or too few collisions).
+struct HybridCost {
+  double ratio = std::numeric_limits<double>::quiet_NaN();           // hard / soft
+  double hard_ns_per_collision = std::numeric_limits<double>::quiet_NaN();  // per particle-collision
+  double soft_ns_per_step = std::numeric_limits<double>::quiet_NaN();       // per soft particle-step
+  bool followed = false;  // hybrid.cost_ratio = "measured": the rule used it
+};
+
 template <int D>
 struct RunResult {
   Method method = Method::Edm;  // the engine that produced it
@@ -100,6 +110,7 @@ struct RunResult {
   std::vector<int> material;          // per row: index into System::materials
   SoftStats soft;                     // TDM and hybrid runs
   HybridStats hybrid;                 // hybrid runs
+  HybridCost hybrid_cost;             // hybrid runs: the costs measured during the run
   std::vector<std::uint8_t> mode;     // hybrid: final mode per particle (0 hard, 1 soft, 3 asleep, 4 fixed)
   std::uint64_t grains_out = 0;       // grains removed by outlets
   double mass_out = 0.0;              // their mass

@@ -64,6 +64,7 @@ HybridSettings hybrid_settings(const Scene& s) {
   if (y.hysteresis) h.hysteresis = *y.hysteresis;
   if (y.skin) h.skin = *y.skin;
   if (y.cost_ratio) h.cost_ratio = *y.cost_ratio;
+  h.cost_measured = y.cost_measured;
   if (y.rest_speed) h.rest_speed = *y.rest_speed;
   if (y.rest_time) h.rest_time = *y.rest_time;
   h.threads = s.threads.value_or(0);
@@ -511,7 +512,10 @@ std::string describe(const Scene& scene, const System<D>& sys) {
                        "             strongly inelastic one would send a grain back to its earlier partner within {} t_c, or when a\n"
                        "             grain and its neighbours collide more often than once per {} substeps (cost); capture just before the touch (at least\n"
                        "             {} of the smallest diameter); release after {:.6g} s without contact{}\n",
-                       h.repeats, h.stability, h.lookahead, h.cost_ratio, h.skin,
+                       h.repeats, h.stability, h.lookahead,
+                       h.cost_measured ? fmt::format("N (N: the measured cost ratio, from {})", h.cost_ratio)
+                                       : fmt::format("{}", h.cost_ratio),
+                       h.skin,
                        h.hysteresis > 0.0 ? h.hysteresis : 10.0 * h.stability * plan.contact_time,
                        h.rest_speed > 0.0 ? fmt::format("; quiet grains (speed < {} m/s) sleep", h.rest_speed)
                                           : std::string());

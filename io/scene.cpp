@@ -1178,7 +1178,13 @@ Scene build_scene(toml::table& root, const std::string& file, const fs::path& ba
     h.lookahead = hy.number_opt("lookahead", kNonNegative);
     h.hysteresis = hy.number_opt("hysteresis", kPositive);
     h.skin = hy.number_opt("skin", kPositive);
-    h.cost_ratio = hy.number_opt("cost_ratio", kPositive);
+    // cost_ratio: a number, or "measured" (the crossover follows the costs the run measures).
+    if (const toml::node* c = hy.find("cost_ratio"); c && c->is_string()) {
+      if (c->as_string()->get() != "measured") hy.fail("cost_ratio", "expected a number > 0 or \"measured\"", *c);
+      h.cost_measured = true;
+    } else {
+      h.cost_ratio = hy.number_opt("cost_ratio", kPositive);
+    }
     h.rest_speed = hy.number_opt("rest_speed", kNonNegative);
     h.rest_time = hy.number_opt("rest_time", kPositive);
   }

@@ -41,6 +41,7 @@ struct OutputSpec {
 struct HybridSpec {
   std::optional<double> stability, lookahead, hysteresis, skin, cost_ratio, rest_speed, rest_time;
   std::optional<int> repeats;
+  bool cost_measured = false;  // cost_ratio = "measured"
 };
 
 struct Scene {

@@ -18,6 +18,7 @@
 #include "contact/timestep.hpp"
 #include "engine/edm/core.hpp"
 #include "engine/flatten.hpp"
+#include "engine/hybrid/cost.hpp"
 #include "engine/hybrid/rest.hpp"
 #include "engine/hybrid/switching.hpp"
 #include "engine/renumber.hpp"
@@ -34,6 +35,7 @@ namespace matep {
 namespace {
 
 using edm::Hot;
+using hybrid::CostMeter;
 using hybrid::RestRule;
 using hybrid::Switch;
 using hybrid::SwitchRule;
@@ -321,8 +323,15 @@ class HybridEngine final : public edm::EdmCore<D, CalendarQueue, HybridEngine<D>
     cost_every_max_ = std::max<std::uint64_t>(1, static_cast<std::uint64_t>(cost_quiet_ / h_));
     cost_every_min_ = std::max<std::uint64_t>(1, cost_every_max_ / 8);
     cost_every_ = cost_every_min_;
+    cost_ratio_ = hs.cost_ratio;
     substep_id_ = this->add_system_event("substep", [this](double t) {
+      const std::uint64_t wrote = this->sample_k_ + this->snapshot_k_ + this->checkpoint_k_;
+      meter_.substep_begin(CostMeter::Clock::now(), particle_collisions(), wrote != wrote_);
+      wrote_ = wrote;
+      const std::size_t stepped = soft_.size();
       substep(t);
+      meter_.substep_end(CostMeter::Clock::now(), static_cast<double>(stepped), particle_collisions());
+      if (hset_.cost_measured && (hstats_.substeps & 0x3f) == 0) follow_measured_cost();
       // A stop request (a signal), after whole substeps: the soft set is then at t like the rest.
       if (status_.empty() && (hstats_.substeps & 0x3f) == 0 && set_.stop &&
           set_.stop->load(std::memory_order_relaxed)) {
@@ -688,6 +697,22 @@ class HybridEngine final : public edm::EdmCore<D, CalendarQueue, HybridEngine<D>
     predict(i, t);
   }
 
+  // Particle-collisions resolved hard so far (CostMeter): a pair collision changes two courses.
+  double particle_collisions() const {
+    return 2.0 * static_cast<double>(counts_.pair) + static_cast<double>(counts_.wall);
+  }
+  // hybrid.cost_ratio = "measured": the cost rule's crossover follows the meter's ratio (every 64
+  // substeps, once it has both costs), kept within [kMinCostRatio, kMaxCostRatio]: below 1 a
+  // collision would be cheaper than a particle-step, which no measurement has shown; above 1000 the
+  // rule would turn soft a grain colliding once in a thousand substeps.
+  void follow_measured_cost() {
+    const double r = meter_.ratio();
+    if (!std::isfinite(r)) return;
+    cost_ratio_ = std::clamp(r, kMinCostRatio, kMaxCostRatio);
+    switch_.set_cost_interval(cost_ratio_ * h_);
+  }
+  static constexpr double kMinCostRatio = 1.0, kMaxCostRatio = 1000.0;
+
   // Release by cost: soft grains whose collisions are cheaper as events return to EDM together.
   // A candidate is an awake soft grain that touches nothing (one that turned soft by the
   // stability rule: for the release hysteresis) and has begun contacts, over its recent window
@@ -700,7 +725,7 @@ class HybridEngine final : public edm::EdmCore<D, CalendarQueue, HybridEngine<D>
   // capture distance; this one frees a dense gas whose grains all lie close to each other. The window is halved
   // (count and span) once it exceeds 4 k t_c, so that it follows a cooling or thinning flow.
   void release_by_cost(double t) {
-    const double rmax = 0.5 / (hset_.cost_ratio * h_);
+    const double rmax = 0.5 / (cost_ratio_ * h_);
     group_.clear();
     for (const int i : soft_) {
       double span = t - rate_t0_[i];
@@ -1902,11 +1927,13 @@ class HybridEngine final : public edm::EdmCore<D, CalendarQueue, HybridEngine<D>
 
   void hybrid_result(RunResult<D>& res) {
     res.method = Method::Hybrid;
+    res.hybrid_cost = {meter_.ratio(), 1e9 * meter_.hard_seconds_per_collision(), 1e9 * meter_.soft_seconds_per_step(),
+                       hset_.cost_measured};
     HybridStats& s = hstats_;
     s.stability = kstab_;
     s.hysteresis = hyst_;
     s.skin = skin_;
-    s.cost_ratio = hset_.cost_ratio;
+    s.cost_ratio = cost_ratio_;
     s.rest_speed = hset_.rest_speed;
     s.rest_time = rest_time_;
     s.soft_at_end = soft_.size() + asleep_;
@@ -1994,6 +2021,9 @@ class HybridEngine final : public edm::EdmCore<D, CalendarQueue, HybridEngine<D>
   // small systems measured end within 1 % of the soft ones; at 0.2 and below up to 25 times off.
   static constexpr double kLookaheadMaxE = 0.3;
   SwitchRule::Params switch_params_;
+  CostMeter meter_;          // the two methods' costs in this run (engine/hybrid/cost.hpp)
+  double cost_ratio_ = 10.0; // the cost rule's crossover in use: hybrid.cost_ratio, or measured
+  std::uint64_t wrote_ = 0;  // output events seen by the meter
   SwitchRule switch_;  // engine/hybrid/switching.hpp
   RestRule rest_;      // engine/hybrid/rest.hpp
   bool rot_ = false;

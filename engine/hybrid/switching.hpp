@@ -53,6 +53,8 @@ class SwitchRule {
     recent_t_.assign(n, {-kNever, -kNever});
   }
   const Params& params() const { return p_; }
+  // The cost crossover changed during the run (hybrid.cost_ratio = "measured").
+  void set_cost_interval(double interval) { p_.cost_interval = interval; }
   // Checkpoints (engine/state_archive.hpp): the per-particle histories (the parameters come from
   // the settings).
   template <class A>

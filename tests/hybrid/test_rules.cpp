@@ -6,6 +6,7 @@
 #include <limits>
 
 #include "contact/vec.hpp"
+#include "engine/hybrid/cost.hpp"
 #include "engine/hybrid/rest.hpp"
 #include "engine/hybrid/switching.hpp"
 
@@ -300,6 +301,85 @@ TEST(RestRule, AGrainStillCreepingOrAboutToCloseAContactStaysAwake) {
   EXPECT_FALSE(RestRule::closing(1e-5, -1e-3, 0.005));
   EXPECT_FALSE(RestRule::closing(1e-5, 1e-3, 1.0));
   EXPECT_FALSE(RestRule::closing(1e-5, 0.0, 1.0));
+}
+
+// The crossover can move during a run (hybrid.cost_ratio = "measured"): a smoothed interval of
+// 0.8 ms stays hard under a 0.5 ms crossover and turns soft under a 1 ms one.
+TEST(SwitchRule, AMovedCostCrossoverIsTheOneTheRuleUses) {
+  for (const double crossover : {0.5e-3, 1e-3}) {
+    SwitchRule r = rule();
+    r.set_cost_interval(crossover);
+    auto tiny = [] { return 1e-9; };
+    double t = 0.0, last = -kNever;
+    Switch v = Switch::Stay;
+    for (int k = 0; k < 6; ++k) {
+      v = r.pair(0, 1, t, last, last, tiny);
+      last = t;
+      t += 0.8e-3;
+    }
+    EXPECT_NEAR(r.interval(0), 0.8e-3, 1e-15);
+    EXPECT_EQ(v, crossover < 0.8e-3 ? Switch::Stay : Switch::Cost) << crossover;
+  }
+}
+
+// The cost meter: hard seconds per particle-collision over soft seconds per particle-step, each a
+// sum over a window that forgets 1/4096 per substep; nothing until enough of each was seen.
+TEST(CostMeter, TheRatioIsHardCostPerCollisionOverSoftCostPerStep) {
+  CostMeter m;
+  EXPECT_TRUE(std::isnan(m.ratio()));
+  m.add_hard(2e-6, 1.0);  // 2 us for one particle-collision: too few to count yet
+  m.add_soft(1e-4, 1000.0);
+  EXPECT_TRUE(std::isnan(m.hard_seconds_per_collision()));
+  EXPECT_TRUE(std::isnan(m.ratio()));
+  for (int k = 0; k < 200; ++k) {
+    m.add_hard(2e-6, 1.0);
+    m.add_soft(1e-4, 1000.0);  // 0.1 us per particle-step
+  }
+  EXPECT_NEAR(m.hard_seconds_per_collision(), 2e-6, 1e-18);
+  EXPECT_NEAR(m.soft_seconds_per_step(), 1e-7, 1e-19);
+  EXPECT_NEAR(m.ratio(), 20.0, 1e-9);
+  // The scene changes: collisions now cost 8 us. After 5 spans the old cost weighs e^-5 of the
+  // window: the ratio is within 1 % of the new 80.
+  for (int k = 0; k < 5 * 4096; ++k) {
+    m.add_hard(8e-6, 1.0);
+    m.add_soft(1e-4, 1000.0);
+  }
+  EXPECT_NEAR(m.ratio(), 80.0, 0.01 * 80.0);
+  EXPECT_GT(m.ratio(), 79.0);
+}
+
+// Fed by the clock: the substeps are soft work, the gaps between them hard work; a gap in which
+// output was written is left out.
+TEST(CostMeter, SubstepsAreSoftWorkAndTheGapsBetweenThemHardWork) {
+  using C = CostMeter::Clock;
+  using std::chrono::microseconds;
+  CostMeter m;
+  C::time_point t{};
+  double coll = 0.0;
+  for (int k = 0; k < 100; ++k) {
+    const bool write = k % 10 == 5;  // a thermo row: this gap takes 1 ms more and is not counted
+    t += microseconds(write ? 1030 : 30);
+    coll += 3.0;  // 30 us for 3 particle-collisions: 10 us each
+    m.substep_begin(t, coll, write);
+    t += microseconds(50);  // 500 grains stepped in 50 us: 0.1 us each
+    m.substep_end(t, 500.0, coll);
+  }
+  EXPECT_NEAR(m.hard_seconds_per_collision(), 1e-5, 1e-12);
+  EXPECT_NEAR(m.soft_seconds_per_step(), 1e-7, 1e-14);
+  EXPECT_NEAR(m.ratio(), 100.0, 1e-6);
+  // Gaps without a collision (20 us: the substep event, crossings) are the baseline that every gap
+  // pays: gaps of 50 us with 3 particle-collisions then cost (50 - 20) / 3 = 10 us a collision.
+  CostMeter q;
+  coll = 0.0;
+  for (int k = 0; k < 400; ++k) {
+    const bool quiet = k % 2 == 1;  // (the first gap, k = 0, is before the meter started)
+    t += microseconds(quiet ? 20 : 50);
+    if (!quiet) coll += 3.0;
+    q.substep_begin(t, coll, false);
+    t += microseconds(50);
+    q.substep_end(t, 500.0, coll);
+  }
+  EXPECT_NEAR(q.hard_seconds_per_collision(), 1e-5, 1e-12);
 }
 
 }  // namespace

@@ -318,6 +318,18 @@ TEST(Scene, SoftSphereKeysAreStored) {
   expect_error(kScene2D, {"material.rubber.contact", "\"spring\""}, {"material.rubber.contact=spring"});
 }
 
+// hybrid.cost_ratio: a number, or "measured" (the crossover follows the run's own costs).
+TEST(Scene, HybridCostRatioIsANumberOrMeasured) {
+  const Scene fixed = load(kScene2D, {"hybrid.cost_ratio=25"});
+  EXPECT_EQ(fixed.hybrid.cost_ratio, 25.0);
+  EXPECT_FALSE(fixed.hybrid.cost_measured);
+  const Scene measured = load(kScene2D, {"hybrid.cost_ratio=measured"});
+  EXPECT_TRUE(measured.hybrid.cost_measured);
+  EXPECT_FALSE(measured.hybrid.cost_ratio.has_value());
+  expect_error(kScene2D, {"hybrid.cost_ratio", "\"measured\"", "\"timed\""}, {"hybrid.cost_ratio=timed"});
+  expect_error(kScene2D, {"hybrid.cost_ratio", "0"}, {"hybrid.cost_ratio=0"});
+}
+
 TEST(Scene, TangentialRuleKey) {
   for (const char* law : {"walton", "constant", "fem_fit"}) {
     const Scene sc = load(kScene2D, {std::string("material.rubber.tangential=") + law});

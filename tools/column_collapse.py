@@ -1,25 +1,28 @@
 #!/usr/bin/python3
-"""Granular column collapse (2D) against the published runout laws (Lube et al. 2005, Lajeunesse et
+"""Granular column collapse against the published runout laws (Lube et al. 2005, Lajeunesse et
 al. 2005): (L_f - L_i) / L_i = 1.2 a for small aspect ratios a = H_i / L_i, 1.9 a^(2/3) for large.
 
-  tools/column_collapse.py [--matep build/matep] [--ratios 0.5,1,2,3,5,8] [--methods tdm,hybrid]
-                           [--threads 1] [--jobs 2] [--out charts] [--runs out/column_collapse]
-                           [--plot-only]
+  tools/column_collapse.py [--geometry 2d|slot] [--matep build/matep] [--ratios 0.5,1,2,3,5,8]
+                           [--width 60,30,20,20,20,20] [--methods tdm,hybrid] [--threads 1]
+                           [--jobs 2] [--out charts] [--runs out/column_collapse] [--plot-only]
 
-For each target aspect ratio the script (1) settles a column of disks behind a gate 20 d from the
-left wall (cases/column_fill.toml with the count and the loose start region scaled, the domain and
-the gate made tall enough), (2) measures the settled column's height H_i (the mean over four strips
-of the highest grain top, above the base's top) and so its actual a = H_i / L_i, (3) releases it
-without the gate (cases/column_collapse.toml, the column and the base read from the settled state, which
-the script splits at the base's top) and runs
+Two geometries: `2d`, disks in a plane (cases/column_fill.toml, cases/column_collapse.toml), and
+`slot`, spheres in a narrow channel between two glass panes 6 d apart, the laboratory's
+quasi-2D set-up (cases/column_slot_fill.toml, cases/column_slot.toml).
+For each target aspect ratio the script (1) settles a column behind a gate L_i from the left wall
+(the fill scene with the count and the loose start region scaled, the domain and the gate made
+tall enough), (2) measures the settled column's height H_i (the mean over four strips of the
+highest grain top, above the base's top) and so its actual a = H_i / L_i, (3) releases it
+without the gate (the collapse scene, the column and the base read from the settled state, which
+the script splits by group) and runs
 until the deposit is at rest (end time 0.6 s + 6 sqrt(H_i / g), the kinetic energy checked), and
 (4) measures the runout: L_f is the deposit's front, where the deposit thins below one grain
-(the first strip, one mean diameter wide, whose highest grain top is less than one mean diameter
+(the first strip, one mean diameter long, whose highest grain top is less than one mean diameter
 above the base); the sparse tail of single grains beyond it is reported too (`runout_with_tail`:
 the contiguous grains' extent, gaps up to one diameter). Writes
-OUT/column_collapse.csv (one row per run) and OUT/column_collapse.png (runout against a, log-log,
-with the two published laws and their +-25 % bands), and prints the table, each point's ratio to
-the published law of its regime and the hybrid's wall time against TDM's.
+OUT/column_collapse[_slot].csv (one row per run) and OUT/column_collapse[_slot].png (runout
+against a, log-log, with the two published laws and their +-25 % bands), and prints the table,
+each point's ratio to the published law of its regime and the hybrid's wall time against TDM's.
 """
 from __future__ import annotations
 
@@ -36,14 +39,62 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 from matep_runs import import_pyplot, run_matep, write_csv  # noqa: E402
 
 ROOT = Path(__file__).resolve().parent.parent
-FILL, COLLAPSE = ROOT / "cases" / "column_fill.toml", ROOT / "cases" / "column_collapse.toml"
-G, D, L_I = 9.81, 0.002, 0.04            # cases/column_fill.toml: |g|, mean diameter, gate at 20 d
-BASE_TOP = 0.0024                         # the top of the strip of fixed disks on the floor
-N_BASE = tomllib.loads(FILL.read_text())["particles"]["base"]["count"]   # ids 0 ... N_BASE - 1
-MEAN_AREA = math.pi * (0.0012 ** 3 - 0.0008 ** 3) / (3 * 0.0004)   # E[pi r^2], r uniform in [0.8, 1.2] mm
-PHI_SETTLED, PHI_LOOSE = 0.8, 0.4         # packing of a settled column (measured), and of the loose start
+G, D, L_I = 9.81, 0.002, 0.04            # |g|, mean diameter, gate at 20 d (the shipped scenes)
+BASE_TOP = 0.0024                         # the top of the strip of fixed grains on the floor
+# E[pi r^2] and E[4/3 pi r^3] for r uniform in [0.8, 1.2] mm
+MEAN_AREA = math.pi * (0.0012 ** 3 - 0.0008 ** 3) / (3 * 0.0004)
+MEAN_VOLUME = 4 / 3 * math.pi * (0.0012 ** 4 - 0.0008 ** 4) / (4 * 0.0004)
 FIELDS = ["method", "a_target", "L_i", "a", "H_i", "L_f", "runout", "published", "ratio_to_published", "runout_with_tail",
           "kinetic_at_end", "grains", "wall_seconds"]
+
+
+class Geometry:
+    """What differs between the plane of disks and the slot of spheres: the scenes, the vertical
+    axis, the slot's width W (the panes' gap, from the fill scene's domain) and the packings the
+    grain count is sized from (settled: measured; loose: the random start)."""
+
+    def __init__(self, kind: str):
+        self.kind = kind
+        self.slot = kind == "slot"
+        name = "column_slot" if self.slot else "column"
+        self.fill = ROOT / "cases" / f"{name}_fill.toml"
+        self.collapse = ROOT / "cases" / ("column_slot.toml" if self.slot else "column_collapse.toml")
+        scene = tomllib.loads(self.fill.read_text())
+        self.up = "z" if self.slot else "y"
+        self.length = scene["domain"]["upper"][0]
+        self.width = scene["domain"]["upper"][1] if self.slot else None
+        self.phi_settled, self.phi_loose = (0.52, 0.25) if self.slot else (0.8, 0.4)
+        self.tag = "_slot" if self.slot else ""
+
+    def count(self, a: float, li: float) -> int:
+        if self.slot:
+            return round(a * li * li * self.width * self.phi_settled / MEAN_VOLUME)
+        return round(a * li * li * self.phi_settled / MEAN_AREA)
+
+    def loose_height(self, n: int, li: float) -> float:
+        if self.slot:
+            return n * MEAN_VOLUME / (li * self.width * self.phi_loose)
+        return n * MEAN_AREA / (li * self.phi_loose)
+
+    def tall(self, top: float, gap: float = 0.0) -> dict:
+        """The domain and the roof at height top (the collapse scene's panes stand gap back)."""
+        if self.slot:
+            return {"domain.upper": [self.length, self.width + gap, top], "wall.roof.point": [0.0, 0.0, top]}
+        return {"domain.upper": [self.length, top], "wall.roof.point": [0.0, top]}
+
+    def fill_sets(self, n: int, li: float, loose: float, top: float) -> dict:
+        if self.slot:
+            return {**self.tall(top), "particles.column.count": n,
+                    "particles.column.region.upper": [li, self.width, 0.0025 + loose],
+                    "wall.gate.point": [li, 0.5 * self.width, 0.5 * top],
+                    "wall.gate.patch.size": [self.width, top - 0.005]}
+        return {**self.tall(top), "particles.column.count": n,
+                "particles.column.region.upper": [li, 0.0025 + loose],
+                "wall.gate.point": [li, 0.5 * top], "wall.gate.patch.length": top - 0.005}
+
+    def columns(self) -> list[str]:
+        return (["x", "y", "z", "vx", "vy", "vz", "wx", "wy", "wz", "radius"] if self.slot
+                else ["x", "y", "vx", "vy", "w", "radius"])
 
 
 def published(a: float) -> float:
@@ -58,19 +109,19 @@ def read_state(path: Path):
         return [{k: v if k in ("group", "material") else float(v) for k, v in row.items()} for row in csv.DictReader(f)]
 
 
-def column_height(grains, li: float = L_I) -> float:
-    strips = [max((g["y"] + g["radius"] for g in grains if k * li / 4 <= g["x"] < (k + 1) * li / 4), default=0.0)
+def column_height(grains, li: float = L_I, up: str = "y") -> float:
+    strips = [max((g[up] + g["radius"] for g in grains if k * li / 4 <= g["x"] < (k + 1) * li / 4), default=0.0)
               for k in range(4)]
     return sum(strips) / 4 - BASE_TOP
 
 
-def front(grains) -> float:
+def front(grains, up: str = "y") -> float:
     """The deposit's front: the left edge of the first strip (one mean diameter wide, from the left
     wall) whose highest grain top stands less than one mean diameter above the base's top. A
     sparse tail of single grains resting in the base's hollows lies beyond it."""
     x = 0.0
     while True:
-        tops = [g["y"] + g["radius"] for g in grains if x <= g["x"] < x + D]
+        tops = [g[up] + g["radius"] for g in grains if x <= g["x"] < x + D]
         if not tops or max(tops) - BASE_TOP < D:
             return x
         x += D
@@ -87,53 +138,50 @@ def farthest(grains) -> float:
     return edge
 
 
-def one(matep, a_target: float, li: float, method: str, runs: Path, threads: int, plot_only: bool) -> dict | None:
-    n = round(a_target * li * li * PHI_SETTLED / MEAN_AREA)
-    loose = n * MEAN_AREA / (li * PHI_LOOSE)
+def one(geo: Geometry, matep, a_target: float, li: float, method: str, runs: Path, threads: int,
+        plot_only: bool) -> dict | None:
+    n = geo.count(a_target, li)
+    loose = geo.loose_height(n, li)
     top = max(0.5, 0.0025 + loose + 0.05)
-    walls = {"domain.upper": [0.9, top], "wall.roof.point": [0.0, top]}
-    fill_dir, bed, base = runs / f"fill_a{a_target:g}", runs / f"bed_a{a_target:g}.csv", runs / f"base_a{a_target:g}.csv"
+    fill_dir, bed = runs / f"fill_a{a_target:g}", runs / f"bed_a{a_target:g}.csv"
+    base = runs / f"base_a{a_target:g}.csv"
     if not plot_only and method == "tdm":
         fill_end = 0.3 + 2 * math.sqrt(2 * loose / G)
-        r = run_matep(matep, FILL, {**walls, "run.end_time": fill_end, "run.threads": threads,
-                                    "particles.column.count": n,
-                                    "particles.column.region.upper": [li, 0.0025 + loose],
-                                    "wall.gate.point": [li, 0.5 * top],
-                                    "wall.gate.patch.length": top - 0.005}, fill_dir)
+        r = run_matep(matep, geo.fill, {**geo.fill_sets(n, li, loose, top), "run.end_time": fill_end,
+                                        "run.threads": threads}, fill_dir)
         if r.status != "ok":
             print(f"a = {a_target:g}: fill {r.status} {r.message}", file=sys.stderr)
             return None
         settled = read_state(fill_dir / "final_state.csv")
-        for path, part in ((bed, [g for g in settled if g["id"] >= N_BASE]),
-                           (base, [g for g in settled if g["id"] < N_BASE])):
+        for path, group in ((bed, "column"), (base, "base")):
             with open(path, "w") as f:
-                f.write("x,y,vx,vy,w,radius\n")
-                for g in part:
-                    f.write(f"{g['x']!r},{g['y']!r},{g['vx']!r},{g['vy']!r},{g['w']!r},{g['radius']!r}\n")
+                f.write(",".join(geo.columns()) + "\n")
+                for g in settled:
+                    if g["group"] == group:
+                        f.write(",".join(repr(g[k]) for k in geo.columns()) + "\n")
     state = read_state(bed)
-    h_i = column_height(state, li)
+    h_i = column_height(state, li, geo.up)
     end = 0.6 + 6 * math.sqrt(h_i / G)
     out_dir = runs / f"{method}_a{a_target:g}"
     if plot_only:
         with open(out_dir / "summary.json") as f:
             summary = json.load(f)
     else:
-        sets = {**walls, "run.method": method, "run.end_time": end, "run.threads": threads,
+        sets = {**geo.tall(top, 0.0001), "run.method": method, "run.end_time": end, "run.threads": threads,
                 "particles.column.file": str(bed), "particles.base.file": str(base)}
         if method == "hybrid":
             sets["hybrid.rest_speed"] = 0.01 * math.sqrt(G * D)   # the deposit sleeps once at rest
-        r = run_matep(matep, COLLAPSE, sets, out_dir)
+        r = run_matep(matep, geo.collapse, sets, out_dir)
         if r.status != "ok":
             print(f"a = {a_target:g} {method}: {r.status} {r.message}", file=sys.stderr)
             return None
         summary = r.summary
-    final = read_state(out_dir / "final_state.csv")
-    final = [g for g in final if g["id"] >= N_BASE]
+    final = [g for g in read_state(out_dir / "final_state.csv") if g["group"] == "column"]
     with open(out_dir / "thermo.csv") as f:
         thermo = list(csv.DictReader(f))
     ke_peak = max(float(t["kinetic_energy"]) for t in thermo)
     a = h_i / li
-    lf = front(final)
+    lf = front(final, geo.up)
     runout = (lf - li) / li
     tail = (farthest(final) - li) / li
     return {"method": method, "a_target": a_target, "L_i": li, "a": a, "H_i": h_i, "L_f": lf, "runout": runout,
@@ -142,7 +190,7 @@ def one(matep, a_target: float, li: float, method: str, runs: Path, threads: int
             "wall_seconds": float(summary["wall_seconds"])}
 
 
-def plot(rows, png: Path):
+def plot(rows, png: Path, title: str):
     plt = import_pyplot()
     fig, ax = plt.subplots(figsize=(6.4, 4.8))
     aa = [0.3 * 1.05 ** k for k in range(80)]
@@ -162,7 +210,7 @@ def plot(rows, png: Path):
     ax.set_yscale("log")
     ax.set_xlabel("aspect ratio a = H_i / L_i")
     ax.set_ylabel("runout (L_f − L_i) / L_i")
-    ax.set_title("2D column collapse (cases/column_collapse.toml)")
+    ax.set_title(title)
     ax.legend(fontsize=8)
     fig.tight_layout()
     fig.savefig(png, dpi=110)
@@ -170,6 +218,8 @@ def plot(rows, png: Path):
 
 def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("--geometry", choices=("2d", "slot"), default="2d",
+                    help="disks in a plane, or spheres in a slot between two panes")
     ap.add_argument("--matep", default=str(ROOT / "build" / "matep"))
     ap.add_argument("--ratios", default="0.5,1,2,3,5,8")
     ap.add_argument("--width", default="60,30,20,20,20,20", help="each column's width L_i in mean diameters")
@@ -177,20 +227,22 @@ def main() -> int:
     ap.add_argument("--threads", type=int, default=1)
     ap.add_argument("--jobs", type=int, default=2, help="aspect ratios run at a time")
     ap.add_argument("--out", default=str(ROOT / "charts"))
-    ap.add_argument("--runs", default=str(ROOT / "out" / "column_collapse"), help="folder for the runs' outputs")
+    ap.add_argument("--runs", help="folder for the runs' outputs (default out/column_collapse[_slot])")
     ap.add_argument("--plot-only", action="store_true", help="analyse the runs already in --runs")
     a = ap.parse_args()
-    out, runs = Path(a.out), Path(a.runs)
+    geo = Geometry(a.geometry)
+    out = Path(a.out)
+    runs = Path(a.runs) if a.runs else ROOT / "out" / f"column_collapse{geo.tag}"
     out.mkdir(parents=True, exist_ok=True)
     runs.mkdir(parents=True, exist_ok=True)
-    csv_path, png_path = out / "column_collapse.csv", out / "column_collapse.png"
+    csv_path, png_path = out / f"column_collapse{geo.tag}.csv", out / f"column_collapse{geo.tag}.png"
     methods = a.methods.split(",")
 
     widths = [float(w) * D for w in a.width.split(",")]
 
     def ratio(x_w):
         # TDM first: it settles the column the other methods start from.
-        return [one(a.matep, float(x_w[0]), x_w[1], m, runs, a.threads, a.plot_only)
+        return [one(geo, a.matep, float(x_w[0]), x_w[1], m, runs, a.threads, a.plot_only)
                 for m in sorted(methods, key=lambda m: m != "tdm")]
 
     rows = []
@@ -209,7 +261,8 @@ def main() -> int:
         if "tdm" in by and "hybrid" in by:
             print(f"a = {by['tdm']['a']:.3f}: hybrid runout / TDM = {by['hybrid']['runout'] / by['tdm']['runout']:.4f}, "
                   f"hybrid wall time / TDM = {by['hybrid']['wall_seconds'] / by['tdm']['wall_seconds']:.3f}")
-    plot(rows, png_path)
+    what = f"spheres in a slot {geo.width / D:g} d wide" if geo.slot else "disks in a plane"
+    plot(rows, png_path, f"column collapse, {what} ({geo.collapse.relative_to(ROOT)})")
     print(f"wrote {csv_path} and {png_path}")
     return 0
 

@@ -122,6 +122,18 @@ def test_column():
     close(column_collapse.farthest(grains), 0.080, 1e-12, "front with the tail")
     strips = [{"x": (k + 0.5) * column_collapse.L_I / 4, "y": 0.05 + 0.001 * k, "radius": 0.001} for k in range(4)]
     close(column_collapse.column_height(strips), 0.0515 + 0.001 - column_collapse.BASE_TOP, 1e-12, "column height")
+    # The slot of spheres: the same deposit with z up (y across the slot) gives the same front and
+    # height; the grain count fills L_i x W x H_i at the settled packing.
+    slot = [{"x": g["x"], "y": 0.006, "z": g["y"], "radius": g["radius"]} for g in grains]
+    close(column_collapse.front(slot, "z"), 0.060, 1e-9, "deposit front in the slot")
+    close(column_collapse.column_height([{**g, "z": g["y"], "y": 0.0} for g in strips], up="z"),
+          0.0515 + 0.001 - column_collapse.BASE_TOP, 1e-12, "column height in the slot")
+    geo = column_collapse.Geometry("slot")
+    close(geo.width, 0.012, 1e-12, "slot width from cases/column_slot_fill.toml")
+    n = geo.count(2.0, column_collapse.L_I)
+    close(n * column_collapse.MEAN_VOLUME / (2.0 * column_collapse.L_I ** 2 * geo.width), geo.phi_settled, 1e-3,
+          "grain count at the settled packing")
+    close(column_collapse.MEAN_VOLUME, 4 / 3 * math.pi * 1.04e-9, 1e-9, "E[4/3 pi r^3], r uniform in [0.8, 1.2] mm")
 
 
 def test_heap_angle():

@@ -101,14 +101,8 @@ void rows_to_user(State& s, const IdMap& m) {
   std::vector<std::size_t> p(rows);
   std::iota(p.begin(), p.end(), std::size_t{0});
   std::sort(p.begin(), p.end(), [&](std::size_t a, std::size_t b) { return uid[a] < uid[b]; });
-  gather(s.x, p);
-  gather(s.v, p);
-  gather(s.w, p);
-  gather(s.radius, p);
-  gather(s.mode, p);
-  if constexpr (requires { s.material; }) gather(s.material, p);
+  for_each_row_array(s, [&](auto& a) { gather(a, p); });
   if constexpr (requires { s.cluster; }) {
-    gather(s.cluster, p);
     std::vector<std::int32_t> relabel;
     std::int32_t next = 0;
     for (std::int32_t& c : s.cluster) {

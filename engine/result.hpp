@@ -119,38 +119,37 @@ struct RunResult {
   std::vector<InletReport> inlets;    // per inlet: grains due, inserted and missed (no free place)
 };
 
+// Calls f on each per-row array of a per-particle state (a RunResult's final state, a Snapshot,
+// with its material and cluster columns where it has them), in one fixed order.
+template <class State, class F>
+void for_each_row_array(State& s, F&& f) {
+  f(s.x);
+  f(s.v);
+  f(s.w);
+  f(s.radius);
+  f(s.mode);
+  if constexpr (requires { s.material; }) f(s.material);
+  if constexpr (requires { s.cluster; }) f(s.cluster);
+}
+
 // Keeps the rows of a per-particle state (a RunResult's final state, a Snapshot) whose particle is
 // present (gone[k] == 0 for particle k, in id order; gone empty: all present), filling its ids.
 template <class State>
 void keep_present(State& s, const std::vector<std::uint8_t>& gone) {
   if (gone.empty()) return;
   std::size_t m = 0;
-  auto keep = [&](auto& a, std::size_t k) {
-    if (!a.empty()) a[m] = a[k];
-  };
-  auto cut = [&](auto& a) {
-    if (!a.empty()) a.resize(m);
-  };
   s.id.clear();
   for (std::size_t k = 0; k < s.x.size(); ++k) {
     if (gone[k]) continue;
     s.id.push_back(static_cast<std::uint32_t>(k));
-    keep(s.x, k);
-    keep(s.v, k);
-    keep(s.w, k);
-    keep(s.radius, k);
-    keep(s.mode, k);
-    if constexpr (requires { s.material; }) keep(s.material, k);
-    if constexpr (requires { s.cluster; }) keep(s.cluster, k);
+    for_each_row_array(s, [&](auto& a) {
+      if (!a.empty()) a[m] = a[k];
+    });
     ++m;
   }
-  cut(s.x);
-  cut(s.v);
-  cut(s.w);
-  cut(s.radius);
-  cut(s.mode);
-  if constexpr (requires { s.material; }) cut(s.material);
-  if constexpr (requires { s.cluster; }) cut(s.cluster);
+  for_each_row_array(s, [&](auto& a) {
+    if (!a.empty()) a.resize(m);
+  });
 }
 
 }  // namespace matep

@@ -54,27 +54,24 @@ class Geometry:
     grain count is sized from (settled: measured; loose: the random start)."""
 
     def __init__(self, kind: str):
-        self.kind = kind
         self.slot = kind == "slot"
-        name = "column_slot" if self.slot else "column"
-        self.fill = ROOT / "cases" / f"{name}_fill.toml"
+        self.fill = ROOT / "cases" / ("column_slot_fill.toml" if self.slot else "column_fill.toml")
         self.collapse = ROOT / "cases" / ("column_slot.toml" if self.slot else "column_collapse.toml")
         scene = tomllib.loads(self.fill.read_text())
         self.up = "z" if self.slot else "y"
         self.length = scene["domain"]["upper"][0]
         self.width = scene["domain"]["upper"][1] if self.slot else None
+        # A grain's mean area (disks) or volume (spheres), and the column's depth across the plane
+        # (1 for disks, W in the slot): a column L_i wide and H tall holds L_i H depth phi / grain.
+        self.grain, self.depth = (MEAN_VOLUME, self.width) if self.slot else (MEAN_AREA, 1.0)
         self.phi_settled, self.phi_loose = (0.52, 0.25) if self.slot else (0.8, 0.4)
         self.tag = "_slot" if self.slot else ""
 
     def count(self, a: float, li: float) -> int:
-        if self.slot:
-            return round(a * li * li * self.width * self.phi_settled / MEAN_VOLUME)
-        return round(a * li * li * self.phi_settled / MEAN_AREA)
+        return round(a * li * li * self.depth * self.phi_settled / self.grain)
 
     def loose_height(self, n: int, li: float) -> float:
-        if self.slot:
-            return n * MEAN_VOLUME / (li * self.width * self.phi_loose)
-        return n * MEAN_AREA / (li * self.phi_loose)
+        return n * self.grain / (li * self.depth * self.phi_loose)
 
     def tall(self, top: float, gap: float = 0.0) -> dict:
         """The domain and the roof at height top (the collapse scene's panes stand gap back)."""

@@ -23,7 +23,6 @@
 #include <algorithm>
 #include <chrono>
 #include <cmath>
-#include <cstdint>
 #include <limits>
 
 namespace matep::hybrid {
@@ -43,8 +42,8 @@ class CostMeter {
       if (n > 0.0) {
         add_hard(std::max(0.0, gap - base_), n);
       } else {
-        base_ = quiet_gaps_ == 0 ? gap : base_ + (gap - base_) / 64.0;
-        ++quiet_gaps_;
+        base_ = have_base_ ? base_ + (gap - base_) / 64.0 : gap;
+        have_base_ = true;
       }
     }
     begin_ = now;
@@ -79,7 +78,7 @@ class CostMeter {
   Clock::time_point begin_{}, end_{};
   double coll_at_end_ = 0.0;
   double base_ = 0.0;              // a gap without collisions [s]
-  std::uint64_t quiet_gaps_ = 0;
+  bool have_base_ = false;         // a gap without collisions was seen
   bool started_ = false;
 };
 

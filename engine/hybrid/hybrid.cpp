@@ -328,9 +328,10 @@ class HybridEngine final : public edm::EdmCore<D, CalendarQueue, HybridEngine<D>
       const std::uint64_t wrote = this->sample_k_ + this->snapshot_k_ + this->checkpoint_k_;
       meter_.substep_begin(CostMeter::Clock::now(), particle_collisions(), wrote != wrote_);
       wrote_ = wrote;
-      const std::size_t stepped = soft_.size();
+      const std::uint64_t steps_before = hstats_.soft_particle_steps;
       substep(t);
-      meter_.substep_end(CostMeter::Clock::now(), static_cast<double>(stepped), particle_collisions());
+      meter_.substep_end(CostMeter::Clock::now(), static_cast<double>(hstats_.soft_particle_steps - steps_before),
+                         particle_collisions());
       if (hset_.cost_measured && (hstats_.substeps & 0x3f) == 0) follow_measured_cost();
       // A stop request (a signal), after whole substeps: the soft set is then at t like the rest.
       if (status_.empty() && (hstats_.substeps & 0x3f) == 0 && set_.stop &&

@@ -194,7 +194,10 @@ class HybridEngine final : public edm::EdmCore<D, CalendarQueue, HybridEngine<D>
     if (mode_[j] != kPending) mark_interface(i);
     return true;
   }
-  void ext_on_predict(int i) { iface_next_[i] = 0.0; }  // its course changed: capture check at the next substep
+  void ext_on_predict(int i) {  // its course changed: capture check at the next substep
+    iface_next_[i] = 0.0;
+    if (iface_flag_[i]) iface_due_ = 0.0;
+  }
   bool ext_divert_pair(int i, int j, double t) { return soft_rule_pair(i, j, t); }
   bool ext_divert_wall(int i, int w, double t) { return soft_rule_wall(i, w, t); }
   // The EDM core's collapse watch fired for hard i at the collision just resolved: the group (i and
@@ -217,13 +220,13 @@ class HybridEngine final : public edm::EdmCore<D, CalendarQueue, HybridEngine<D>
   }
   void ext_result(RunResult<D>& res) { hybrid_result(res); }
   void ext_removed(int i) {
-    mode_[i] = kGone;
+    set_mode(i, kGone);
     iface_flag_[i] = 0;
   }
   // A grain from an inlet enters hard, with its own mass; next to a soft grain it is an interface
   // particle (captured at the next substep if within the skin).
   void ext_inserted(int i, double) {
-    mode_[i] = kHard;
+    set_mode(i, kHard);
     const double m = mass(i), R = hot_[i].R;
     minv_[i] = 1.0 / m;
     iinv_[i] = 1.0 / (inertia_factor<D>() * m * R * R);
@@ -388,9 +391,9 @@ class HybridEngine final : public edm::EdmCore<D, CalendarQueue, HybridEngine<D>
     near_.assign(N_, 0);
     switch_.reset(N_, switch_params_);
     mode_.assign(N_, kHard);
-    for (const int i : fixed_list_) mode_[i] = kFixed;
+    for (const int i : fixed_list_) set_mode(i, kFixed);
     for (int i = 0; i < N_; ++i)
-      if (this->is_removed(i)) mode_[i] = kGone;  // a slot an inlet fills later
+      if (this->is_removed(i)) set_mode(i, kGone);  // a slot an inlet fills later
     if (sleeping_) {
       fz_base_.assign(N_, Vec<D>::Zero());
       fz_mix_.assign(N_, Vec<D>::Zero());
@@ -414,8 +417,16 @@ class HybridEngine final : public edm::EdmCore<D, CalendarQueue, HybridEngine<D>
 
   double inv_mass(int i) const { return minv_[i]; }
 
+  // Every change of a grain's mode goes through here: an interface grain that is no longer hard
+  // leaves the interface list at the next capture scan.
+  void set_mode(int i, std::uint8_t m) {
+    mode_[i] = m;
+    if (iface_flag_[i]) iface_due_ = 0.0;
+  }
+
   void mark_interface(int i) {
     iface_next_[i] = 0.0;  // check at the next substep
+    iface_due_ = 0.0;
     if (iface_flag_[i]) return;
     iface_flag_[i] = 1;
     iface_.push_back(i);
@@ -608,7 +619,7 @@ class HybridEngine final : public edm::EdmCore<D, CalendarQueue, HybridEngine<D>
   // collided with within the stability window (its cluster), recursively.
   void make_pending(int i, double t, std::uint8_t reason) {
     if (mode_[i] != kHard) return;
-    mode_[i] = kPending;
+    set_mode(i, kPending);
     pending_reason_.push_back(reason);
     pending_.push_back(i);
     queue_->erase(i);
@@ -640,7 +651,7 @@ class HybridEngine final : public edm::EdmCore<D, CalendarQueue, HybridEngine<D>
       queue_->erase(i);
       ++cold_[i].counter;
     }
-    mode_[i] = kSoft;
+    set_mode(i, kSoft);
     iface_flag_[i] = 0;
     cblo_[i].setConstant(kNever);  // relocate at the first substep (the box may be stale)
     cbhi_[i].setConstant(-kNever);
@@ -682,7 +693,7 @@ class HybridEngine final : public edm::EdmCore<D, CalendarQueue, HybridEngine<D>
 
   // Soft i returns to EDM at substep time t with its full-step velocity and spin.
   void release(int i, double t) {
-    mode_[i] = kHard;
+    set_mode(i, kHard);
     const int s = slot_[i];
     soft_[s] = soft_.back();
     slot_[soft_[s]] = s;
@@ -1178,30 +1189,36 @@ class HybridEngine final : public edm::EdmCore<D, CalendarQueue, HybridEngine<D>
     const double* const MINV = minv_.data();
     const bool outlets = !sys_.outlets.empty();
     // (Threads: each drifts a range of the soft set and lists the grains that left their cell box
-    // or entered an outlet; those are handled after, in soft-set order, as one thread would.)
+    // or entered an outlet; those are handled after, in soft-set order, as one thread would. The
+    // loop keeps its pointers and its flag in locals: a byte store through a captured reference
+    // would make the compiler reload every pointer at each particle.)
     const int T = threads_for(soft_.size());
     std::array<std::uint8_t, kMaxThreads> moved{};
-    parallel(T, [&](int th) {
+    const int* const SOFT = soft_.data();
+    const std::size_t nsoft = soft_.size();
+    const bool rot = rot_;
+    parallel(T, [&, h, lim2, g, HOT, BLO, BHI, FF, AC, VH, X0, MINV, SOFT, nsoft, rot, outlets](int th) {
       bool dirty = false;
       std::vector<int>& reloc = t_relocate_[th];
       std::vector<std::pair<int, int>>& leave = t_leaving_[th];
       reloc.clear();
       leave.clear();
-      for_soft_part(th, T, [&](int i) {
+      for (std::size_t k = nsoft * th / T, end = nsoft * (th + 1) / T; k < end; ++k) {
+        const int i = SOFT[k];
         dirty |= soft::kick_drift<D>(FF[i], AC[i], VH[i], HOT[i].x, X0[i], MINV[i], g, h, lim2);
-        if (rot_) soft::kick_spin(tq_[i], alpha_[i], wh_[i], iinv_[i], h);
+        if (rot) soft::kick_spin(tq_[i], alpha_[i], wh_[i], iinv_[i], h);
         HOT[i].t = t;
         const Vec<D>& x = HOT[i].x;
         if (outlets) [[unlikely]] {
           if (const int o = sys_.outlet_at(x); o >= 0) {
             leave.emplace_back(i, o);
-            return;
+            continue;
           }
         }
         // Still inside the box of its cell (edge cells of closed axes: up to the escape limit;
         // NaN fails the test): no cell update.
         if (!((x.array() >= BLO[i].array()).all() && (x.array() < BHI[i].array()).all())) reloc.push_back(i);
-      });
+      }
       moved[th] = dirty;
     });
     for (int th = 0; th < T; ++th) {
@@ -1239,19 +1256,23 @@ class HybridEngine final : public edm::EdmCore<D, CalendarQueue, HybridEngine<D>
     freed_.clear();
     const int T5 = threads_for(soft_.size());
     std::array<double, kMaxThreads> vmax{};
-    parallel(T5, [&](int th) {
+    const int* const SOFT5 = soft_.data();  // the soft set has changed since the drift (joins)
+    const std::size_t n5 = soft_.size();
+    parallel(T5, [&, hdt, hyst, g, HOT, F5, VH5, MINV, TOUCHING, NEAR, LAST, SOFT5, n5, rot, t](int th) {
       double vm2 = 0.0;
       std::vector<int>& freed = t_freed_[th];
       freed.clear();
-      for_soft_part(th, T5, [&](int i) {
+      for (std::size_t k = n5 * th / T5, end = n5 * (th + 1) / T5; k < end; ++k) {
+        const int i = SOFT5[k];
         const Vec<D> v = soft::full_step<D>(VH5[i], F5[i], MINV[i], g, hdt);
         HOT[i].v = v;
         vm2 = std::max(vm2, v.squaredNorm());
-        if (rot_) sys_.w[i] = wh_[i] + hdt * (tq_[i] * iinv_[i]);
-        if (TOUCHING[i]) LAST[i] = t;
-        if (!TOUCHING[i] && !NEAR[i] && t - LAST[i] >= hyst) freed.push_back(i);
+        if (rot) sys_.w[i] = wh_[i] + hdt * (tq_[i] * iinv_[i]);
+        const bool touching = TOUCHING[i], near = NEAR[i];
+        if (touching) LAST[i] = t;
+        else if (!near && t - LAST[i] >= hyst) freed.push_back(i);
         TOUCHING[i] = NEAR[i] = 0;
-      });
+      }
       vmax[th] = vm2;
     });
     for (int th = 0; th < T5; ++th) {
@@ -1311,6 +1332,11 @@ class HybridEngine final : public edm::EdmCore<D, CalendarQueue, HybridEngine<D>
 
   // Hard interface particles within the skin of a soft (or sleeping) one join the soft set.
   void capture(double t) {
+    // Nothing due before iface_due_ (the earliest check of the list, brought forward by every
+    // change to it): the scan would keep every entry as it is.
+    if (t < iface_due_) return;
+    iface_due_ = kNever;  // brought forward by what the joins below change
+    double due = kNever;
     std::size_t keep = 0;
     const std::size_t n = iface_.size();
     for (std::size_t k = 0; k < n; ++k) {
@@ -1320,6 +1346,7 @@ class HybridEngine final : public edm::EdmCore<D, CalendarQueue, HybridEngine<D>
         continue;
       }
       if (t < iface_next_[i]) {  // too far from every soft particle to reach the skin yet
+        due = std::min(due, iface_next_[i]);
         iface_[keep++] = i;
         continue;
       }
@@ -1353,14 +1380,17 @@ class HybridEngine final : public edm::EdmCore<D, CalendarQueue, HybridEngine<D>
         const double span = kMaxSkip * h_;
         const double vb = vi + g_.norm() * span + 2.0 * vsoft_max_;
         iface_next_[i] = vb > 0.0 ? t + std::min(span, gmin / vb) : t + span;
+        due = std::min(due, iface_next_[i]);
         iface_[keep++] = i;
       } else {
         iface_flag_[i] = 0;
       }
     }
     // Particles marked during the joins above were appended after n.
+    if (iface_.size() > n) due = 0.0;
     for (std::size_t k = n; k < iface_.size(); ++k) iface_[keep++] = iface_[k];
     iface_.resize(keep);
+    iface_due_ = std::min(iface_due_, due);
   }
 
   // Contact forces of the soft set at time t: the soft path's pair loop and wall contacts
@@ -1680,7 +1710,7 @@ class HybridEngine final : public edm::EdmCore<D, CalendarQueue, HybridEngine<D>
           over = over || (hot_[i].x - hot_[j].x - shift).squaredNorm() < s * s;
         });
       if (over) {
-        mode_[i] = kPending;
+        set_mode(i, kPending);
         pending_.push_back(i);
         pending_reason_.push_back(kByOverlap);
       }
@@ -1819,7 +1849,7 @@ class HybridEngine final : public edm::EdmCore<D, CalendarQueue, HybridEngine<D>
   bool still(std::uint32_t i) const { return mode_[i] == kAsleep || mode_[i] == kFixed; }
 
   void freeze(int i) {
-    mode_[i] = kAsleep;
+    set_mode(i, kAsleep);
     slot_[i] = -1;
     quiet_checks_[i] = 0;
     hot_[i].v.setZero();
@@ -1854,7 +1884,7 @@ class HybridEngine final : public edm::EdmCore<D, CalendarQueue, HybridEngine<D>
       if (lost || RestRule::loaded(dev, fz_scale_[j])) {
         f_[j] = dev + fz_base_[j];
         if (rot_) tq_[j] += fz_tbase_[j] - fz_tmix_[j];
-        mode_[j] = kSoft;
+        set_mode(j, kSoft);
         slot_[j] = static_cast<int>(soft_.size());
         soft_.push_back(j);
         x0_[j] = hot_[j].x;
@@ -2050,6 +2080,8 @@ class HybridEngine final : public edm::EdmCore<D, CalendarQueue, HybridEngine<D>
   std::vector<std::uint8_t> mode_;        // kHard, kSoft, kPending, kAsleep
   std::vector<std::uint8_t> iface_flag_;  // a hard particle on the interface list
   std::vector<double> iface_next_;        // its next capture check (substep time)
+  double iface_due_ = 0.0;                // the earliest iface_next_ of the list, or earlier (not saved:
+                                          // 0 after a restore, one full scan)
   double vsoft_max_ = 0.0;                // fastest awake soft particle at the last substep
   std::vector<int> region_;               // region_cheaper_soft's hard neighbours
   static constexpr double kMaxSkip = 64.0;

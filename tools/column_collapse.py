@@ -2,13 +2,15 @@
 """Granular column collapse against the published runout laws (Lube et al. 2005, Lajeunesse et
 al. 2005): (L_f - L_i) / L_i = 1.2 a for small aspect ratios a = H_i / L_i, 1.9 a^(2/3) for large.
 
-  tools/column_collapse.py [--geometry 2d|slot] [--matep build/matep] [--ratios 0.5,1,2,3,5,8]
+  tools/column_collapse.py [--geometry 2d|slot|slice] [--matep build/matep] [--ratios 0.5,1,2,3,5,8]
                            [--width 60,30,20,20,20,20] [--methods tdm,hybrid] [--threads 1]
                            [--jobs 2] [--out charts] [--runs out/column_collapse] [--plot-only]
 
-Two geometries: `2d`, disks in a plane (cases/column_fill.toml, cases/column_collapse.toml), and
+Three geometries: `2d`, disks in a plane (cases/column_fill.toml, cases/column_collapse.toml);
 `slot`, spheres in a narrow channel between two glass panes 6 d apart, the laboratory's
-quasi-2D set-up (cases/column_slot_fill.toml, cases/column_slot.toml).
+quasi-2D set-up (cases/column_slot_fill.toml, cases/column_slot.toml); and `slice`, the same
+spheres in a slice 6 d deep that repeats across (periodic, no panes: the middle of a wide
+channel; cases/column_slice_fill.toml, cases/column_slice.toml).
 For each target aspect ratio the script (1) settles a column behind a gate L_i from the left wall
 (the fill scene with the count and the loose start region scaled, the domain and the gate made
 tall enough), (2) measures the settled column's height H_i (the mean over four strips of the
@@ -20,7 +22,7 @@ until the deposit is at rest (end time 0.6 s + 6 sqrt(H_i / g), the kinetic ener
 (the first strip, one mean diameter long, whose highest grain top is less than one mean diameter
 above the base); the sparse tail of single grains beyond it is reported too (`runout_with_tail`:
 the contiguous grains' extent, gaps up to one diameter). Writes
-OUT/column_collapse[_slot].csv (one row per run) and OUT/column_collapse[_slot].png (runout
+OUT/column_collapse[_slot|_slice].csv (one row per run) and OUT/column_collapse[_slot|_slice].png (runout
 against a, log-log, with the two published laws and their +-25 % bands), and prints the table,
 each point's ratio to the published law of its regime and the hybrid's wall time against TDM's.
 """
@@ -49,14 +51,18 @@ FIELDS = ["method", "a_target", "L_i", "a", "H_i", "L_f", "runout", "published",
 
 
 class Geometry:
-    """What differs between the plane of disks and the slot of spheres: the scenes, the vertical
-    axis, the slot's width W (the panes' gap, from the fill scene's domain) and the packings the
-    grain count is sized from (settled: measured; loose: the random start)."""
+    """What differs between the plane of disks and the slot or slice of spheres: the scenes, the
+    vertical axis, the slot's width W (the panes' gap, or the slice's period, from the fill scene's
+    domain) and the packings the grain count is sized from (settled: measured; loose: the random
+    start)."""
 
     def __init__(self, kind: str):
-        self.slot = kind == "slot"
-        self.fill = ROOT / "cases" / ("column_slot_fill.toml" if self.slot else "column_fill.toml")
-        self.collapse = ROOT / "cases" / ("column_slot.toml" if self.slot else "column_collapse.toml")
+        self.kind = kind
+        self.slot = kind in ("slot", "slice")      # spheres in 3D, the column W deep
+        self.periodic = kind == "slice"            # no panes: the slice repeats across
+        stem = {"2d": "column", "slot": "column_slot", "slice": "column_slice"}[kind]
+        self.fill = ROOT / "cases" / f"{stem}_fill.toml"
+        self.collapse = ROOT / "cases" / (f"{stem}.toml" if self.slot else "column_collapse.toml")
         scene = tomllib.loads(self.fill.read_text())
         self.up = "z" if self.slot else "y"
         self.length = scene["domain"]["upper"][0]
@@ -65,7 +71,7 @@ class Geometry:
         # (1 for disks, W in the slot): a column L_i wide and H tall holds L_i H depth phi / grain.
         self.grain, self.depth = (MEAN_VOLUME, self.width) if self.slot else (MEAN_AREA, 1.0)
         self.phi_settled, self.phi_loose = (0.52, 0.25) if self.slot else (0.8, 0.4)
-        self.tag = "_slot" if self.slot else ""
+        self.tag = f"_{kind}" if self.slot else ""
 
     def count(self, a: float, li: float) -> int:
         return round(a * li * li * self.depth * self.phi_settled / self.grain)
@@ -74,7 +80,10 @@ class Geometry:
         return n * self.grain / (li * self.depth * self.phi_loose)
 
     def tall(self, top: float, gap: float = 0.0) -> dict:
-        """The domain and the roof at height top (the collapse scene's panes stand gap back)."""
+        """The domain and the roof at height top (the collapse scene's panes stand gap back; a
+        periodic slice keeps its period)."""
+        if self.periodic:
+            gap = 0.0
         if self.slot:
             return {"domain.upper": [self.length, self.width + gap, top], "wall.roof.point": [0.0, 0.0, top]}
         return {"domain.upper": [self.length, top], "wall.roof.point": [0.0, top]}
@@ -207,7 +216,7 @@ def plot(rows, png: Path, title: str):
     ax.set_yscale("log")
     ax.set_xlabel("aspect ratio a = H_i / L_i")
     ax.set_ylabel("runout (L_f − L_i) / L_i")
-    ax.set_title(title)
+    ax.set_title(title, fontsize=10)
     ax.legend(fontsize=8)
     fig.tight_layout()
     fig.savefig(png, dpi=110)
@@ -215,8 +224,8 @@ def plot(rows, png: Path, title: str):
 
 def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    ap.add_argument("--geometry", choices=("2d", "slot"), default="2d",
-                    help="disks in a plane, or spheres in a slot between two panes")
+    ap.add_argument("--geometry", choices=("2d", "slot", "slice"), default="2d",
+                    help="disks in a plane, spheres in a slot between two panes, or spheres in a periodic slice")
     ap.add_argument("--matep", default=str(ROOT / "build" / "matep"))
     ap.add_argument("--ratios", default="0.5,1,2,3,5,8")
     ap.add_argument("--width", default="60,30,20,20,20,20", help="each column's width L_i in mean diameters")
@@ -224,7 +233,7 @@ def main() -> int:
     ap.add_argument("--threads", type=int, default=1)
     ap.add_argument("--jobs", type=int, default=2, help="aspect ratios run at a time")
     ap.add_argument("--out", default=str(ROOT / "charts"))
-    ap.add_argument("--runs", help="folder for the runs' outputs (default out/column_collapse[_slot])")
+    ap.add_argument("--runs", help="folder for the runs' outputs (default out/column_collapse[_slot|_slice])")
     ap.add_argument("--plot-only", action="store_true", help="analyse the runs already in --runs")
     a = ap.parse_args()
     geo = Geometry(a.geometry)
@@ -258,7 +267,8 @@ def main() -> int:
         if "tdm" in by and "hybrid" in by:
             print(f"a = {by['tdm']['a']:.3f}: hybrid runout / TDM = {by['hybrid']['runout'] / by['tdm']['runout']:.4f}, "
                   f"hybrid wall time / TDM = {by['hybrid']['wall_seconds'] / by['tdm']['wall_seconds']:.3f}")
-    what = f"spheres in a slot {geo.width / D:g} d wide" if geo.slot else "disks in a plane"
+    what = (f"spheres in a periodic slice {geo.width / D:g} d deep" if geo.periodic else
+            f"spheres in a slot {geo.width / D:g} d wide" if geo.slot else "disks in a plane")
     plot(rows, png_path, f"column collapse, {what} ({geo.collapse.relative_to(ROOT)})")
     print(f"wrote {csv_path} and {png_path}")
     return 0

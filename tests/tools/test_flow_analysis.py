@@ -134,6 +134,15 @@ def test_column():
     close(n * column_collapse.MEAN_VOLUME / (2.0 * column_collapse.L_I ** 2 * geo.width), geo.phi_settled, 1e-3,
           "grain count at the settled packing")
     close(column_collapse.MEAN_VOLUME, 4 / 3 * math.pi * 1.04e-9, 1e-9, "E[4/3 pi r^3], r uniform in [0.8, 1.2] mm")
+    # The periodic slice: spheres 6 d deep with no panes; its collapse scene keeps the fill's period
+    # (the panes' gap of the slot is not added) and its own scenes and outputs.
+    sl = column_collapse.Geometry("slice")
+    assert sl.slot and sl.periodic and not geo.periodic
+    close(sl.width, 0.012, 1e-12, "slice depth from cases/column_slice_fill.toml")
+    assert sl.tall(0.3, 0.0001)["domain.upper"] == [sl.length, 0.012, 0.3]
+    assert geo.tall(0.3, 0.0001)["domain.upper"][1] == 0.012 + 0.0001
+    assert sl.collapse.name == "column_slice.toml" and sl.fill.name == "column_slice_fill.toml"
+    assert sl.tag == "_slice" and geo.tag == "_slot" and column_collapse.Geometry("2d").tag == ""
 
 
 def test_heap_angle():

@@ -391,9 +391,9 @@ class HybridEngine final : public edm::EdmCore<D, CalendarQueue, HybridEngine<D>
     near_.assign(N_, 0);
     switch_.reset(N_, switch_params_);
     mode_.assign(N_, kHard);
-    for (const int i : fixed_list_) set_mode(i, kFixed);
+    for (const int i : fixed_list_) mode_[i] = kFixed;  // (the interface list is empty yet)
     for (int i = 0; i < N_; ++i)
-      if (this->is_removed(i)) set_mode(i, kGone);  // a slot an inlet fills later
+      if (this->is_removed(i)) mode_[i] = kGone;  // a slot an inlet fills later
     if (sleeping_) {
       fz_base_.assign(N_, Vec<D>::Zero());
       fz_mix_.assign(N_, Vec<D>::Zero());

@@ -50,7 +50,7 @@ inline double cross_norm2(const V& r, const V& v) {
 }
 
 template <class V>
-inline double pair_collision_time(const V& r, const V& v, double sigma, double limit = kNever) {
+[[gnu::always_inline]] inline double pair_collision_time(const V& r, const V& v, double sigma, double limit = kNever) {
   const double b = r.dot(v);
   if (b >= 0.0) return kNever;  // receding or tangent: never an event
   double c = r.squaredNorm() - sigma * sigma;

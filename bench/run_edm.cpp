@@ -68,7 +68,7 @@ struct Timer final : Observer<3> {
   }
 };
 
-int one(int n_side, double rho, const std::string& queue, double cpp) {
+int one(int n_side, double rho, const std::string& queue, double cpp, double shell) {
   const long rss0 = current_rss_kb();
   System<3> sys = lattice(n_side, rho, 1);
   const double N = static_cast<double>(sys.size());
@@ -78,6 +78,10 @@ int one(int n_side, double rho, const std::string& queue, double cpp) {
   const double g = (1 - phi / 2) / std::pow(1 - phi, 3);
   const double omega = 24 * phi * g / std::sqrt(std::numbers::pi);
   EdmSettings set;
+  if (shell > 0.0) {  // neighbour lists with shells of this half-width (in diameters)
+    set.lists = true;
+    set.shell = shell;
+  }
   const double t_eq = 3.0 / omega;
   set.end_time = t_eq + cpp / omega;
   set.thermo_interval = t_eq;
@@ -122,7 +126,8 @@ Row measure(const std::string& self, int n_side, double rho, const std::string& 
 
 int main(int argc, char** argv) {
   std::vector<std::string> a(argv + 1, argv + argc);
-  if (a.size() == 5 && a[0] == "--one") return one(std::stoi(a[1]), std::stod(a[2]), a[3], std::stod(a[4]));
+  if ((a.size() == 5 || a.size() == 6) && a[0] == "--one")
+    return one(std::stoi(a[1]), std::stod(a[2]), a[3], std::stod(a[4]), a.size() == 6 ? std::stod(a[5]) : 0.0);
   const bool quick = !a.empty() && a[0] == "--quick";
   const std::string self = "/proc/self/exe";
   char buf[4096];

@@ -173,6 +173,13 @@ struct EdmSettings {
   // interval falls this many decades below its recent level stops the run with status "collapse"
   // (the hybrid turns it soft instead); 0 = off.
   double collapse_decades = 4.0;
+  // Pair candidates from per-particle neighbour lists with shells (engine/edm/core.hpp) instead of
+  // the cells around each particle; pure EDM only. lists_auto: lists where engine/edm/neighbours.hpp
+  // lists_pay says so. shell: the shells' size (ball radius, or cube half-width under gravity) in
+  // largest diameters.
+  bool lists = false;
+  bool lists_auto = false;
+  double shell = 0.125;
   // When set and it turns true (a signal handler may set it), the run stops between two events
   // with status "interrupted": the state is that after the last event handled.
   const std::atomic<bool>* stop = nullptr;

@@ -36,6 +36,9 @@ EdmSettings edm_settings(const Scene& s) {
   e.snapshot_interval = s.output.snapshot_interval;
   if (s.max_events > 0) e.max_events = s.max_events;
   e.collapse_decades = s.collapse_decades;
+  e.lists = s.neighbours == "lists";
+  e.lists_auto = s.neighbours == "auto";
+  e.shell = s.shell;
   e.stop = &stop_flag();
   return e;
 }

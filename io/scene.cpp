@@ -1147,7 +1147,7 @@ Scene build_scene(toml::table& root, const std::string& file, const fs::path& ba
       run.fail(gone, "is no longer a key: the collapse watch judges a particle's collision intervals against "
                      "its own recent ones, set by run.collapse_decades (README \"Inelastic collapse\")");
   run.allow({"dimension", "method", "start_time", "end_time", "seed", "gravity", "queue", "tc", "collapse_decades",
-             "max_events", "dt", "threads"});
+             "max_events", "dt", "threads", "neighbours", "shell"});
   const std::int64_t dim = run.integer("dimension");
   if (dim != 2 && dim != 3) run.fail("dimension", "must be 2 or 3", run.need("dimension"));
   scene.dimension = static_cast<int>(dim);
@@ -1163,6 +1163,9 @@ Scene build_scene(toml::table& root, const std::string& file, const fs::path& ba
   if (scene.collapse_decades > 0.0 && scene.collapse_decades < 1.0)
     run.fail("collapse_decades", fmt::format("must be 0 (off) or at least 1 (got {})", scene.collapse_decades));
   scene.max_events = static_cast<std::uint64_t>(run.integer_or("max_events", 0, kNonNegative));
+  // Read and checked whatever run.method is; used by pure EDM only (the hybrid keeps its cells).
+  scene.neighbours = run.string_opt("neighbours", {"cells", "lists", "auto"}).value_or("cells");
+  scene.shell = run.number_or("shell", EdmSettings{}.shell, Range{1e-3, 2.0});
   scene.dt = run.number_opt("dt", kPositive);
   if (const auto th = run.integer_opt("threads", Range{1.0, 1048576.0})) scene.threads = static_cast<int>(*th);
 

@@ -55,6 +55,8 @@ struct Scene {
   std::uint64_t seed = 1;
   double tc = 0.0;                // run.tc, TC model; 0 = off
   double collapse_decades = EdmSettings{}.collapse_decades;  // run.collapse_decades (the engine's default)
+  std::string neighbours = "cells";  // run.neighbours: "cells" | "lists" | "auto" (EDM pair candidates)
+  double shell = EdmSettings{}.shell;  // run.shell: the shells' half-width in largest diameters
   std::uint64_t max_events = 0;   // run.max_events; 0 = unlimited
   std::optional<double> dt;       // run.dt (soft-sphere time step, > 0); unset = engine's choice
   std::optional<int> threads;     // run.threads (soft-sphere, >= 1); unset = engine's choice

@@ -93,8 +93,9 @@ double worst_overlap(const RunResult<D>& r) {
 // EDM (and the hybrid's hard grains): every grain due enters at its slot time, with the next id,
 // and the gas stays free of overlaps.
 TEST(Inlets, EdmInsertsOnScheduleWithoutOverlap) {
-  for (const bool hybrid : {false, true}) {
-    SCOPED_TRACE(hybrid ? "hybrid" : "edm");
+  for (const int mode : {0, 1, 2}) {  // EDM with cells, EDM with neighbour lists, the hybrid
+    const bool hybrid = mode == 2;
+    SCOPED_TRACE(hybrid ? "hybrid" : mode == 1 ? "edm, lists" : "edm");
     System<3> s = box<3>(5);
     s.inlets = {box_inlet<3>(Vec<3>::Constant(0.1), Vec<3>::Constant(0.9), 200.0, 0.5)};
     s.inlets[0].start = 0.0125;  // no slot falls on a thermo row
@@ -102,9 +103,11 @@ TEST(Inlets, EdmInsertsOnScheduleWithoutOverlap) {
     EdmSettings set;
     set.end_time = 0.5;
     set.thermo_interval = 0.05;
+    set.lists = mode == 1;
     const RunResult<3> r = hybrid ? run_hybrid<3>(s, set, HybridSettings{}, {&rec})
                                   : run_edm<3>(s, set, QueueKind::Calendar, {&rec});
     EXPECT_EQ(r.status, "ok") << r.message;
+    EXPECT_EQ(r.lists, mode == 1);
     ASSERT_EQ(r.inlets.size(), 1u);
     EXPECT_EQ(r.inlets[0].due, 98u);  // 0.0125 + k / 200 < 0.5
     EXPECT_EQ(r.inlets[0].inserted, 98u);

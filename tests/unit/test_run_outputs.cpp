@@ -66,7 +66,9 @@ double expect_one_complete_set(const fs::path& d, bool staging_may_remain = fals
     const auto stats = run_cli("log stats " + (d / "events.bin").string());
     EXPECT_EQ(stats.code, 0) << stats.out;
   }
-  if (!staging_may_remain) EXPECT_FALSE(fs::exists(d.string() + ".running")) << d;
+  if (!staging_may_remain) {
+    EXPECT_FALSE(fs::exists(d.string() + ".running")) << d;
+  }
   return std::stod(summary_value(summary, "end_time"));
 }
 

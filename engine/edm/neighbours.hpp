@@ -1,0 +1,18 @@
+// Which pair candidates the event-driven core tests (EdmSettings::neighbours): the 3^D cells
+// around a particle, or its neighbour list (engine/edm/core.hpp "neighbour lists").
+#pragma once
+
+namespace matep::edm {
+
+// The packing fraction from which neighbour lists beat the cells in a gas without gravity
+// (bench/README.md "Neighbour lists"): measured at N = 32 768 elastic spheres, one core, with
+// 0.125-diameter shells, lists ran at 0.78 x the cells' collision rate at packing 0.367 and
+// 1.1-1.2 x at 0.445; the crossover lies between.
+inline constexpr double kListsFromPacking = 0.42;
+
+// Whether "auto" chooses lists: a gas of moving grains at least this dense (their volume over the
+// domain's), without gravity (under gravity the shells are cubes, which lost to the cells at every
+// density measured).
+inline bool lists_pay(double packing, bool gravity) { return !gravity && packing >= kListsFromPacking; }
+
+}  // namespace matep::edm

@@ -510,14 +510,20 @@ class EdmCore {
   // after a cell crossing).
   template <class F>
   void for_neighbours(int i, F&& f, int layer_axis = -1, int layer_dir = 0) const {
+    walk_cells(i, f, [this](int j) { __builtin_prefetch(&hot_[j]); }, layer_axis, layer_dir);
+  }
+  // for_neighbours with the record to prefetch for each candidate chosen by the caller (`fetch(j)`:
+  // the particle state for a prediction, the shell for a list build).
+  template <class F, class Fetch>
+  void walk_cells(int i, F&& f, Fetch&& fetch, int layer_axis = -1, int layer_dir = 0) const {
     const std::array<int, D> c = cold_[i].cell;
     // Fast path: a cell away from the grid's faces has its neighbours at fixed linear offsets.
     if (grid_.interior(c)) {
       const int lin = linear(c);
       const auto& offs = grid_.offsets(layer_axis, layer_dir);
       const Vec<D> zero = Vec<D>::Zero();
-      // Collect first, prefetching each neighbour's state, then test: the misses of a large
-      // system overlap instead of following one another.
+      // Collect first, prefetching each candidate, then test: the misses of a large system
+      // overlap instead of following one another.
       constexpr int kBuf = 128;
       int buf[kBuf];
       int n = 0;
@@ -525,7 +531,7 @@ class EdmCore {
         for (int j = head_[lin + off]; j >= 0; j = next_[j]) {
           if (j == i) continue;
           if (n < kBuf) {
-            __builtin_prefetch(&hot_[j]);
+            fetch(j);
             buf[n++] = j;
           } else {
             f(j, zero);
@@ -658,31 +664,7 @@ class EdmCore {
       nb_append(i, j, sh);
       nb_append(j, i, static_cast<std::uint8_t>(CellGrid<D>::kStencil - 1 - sh));
     };
-    const std::array<int, D> c = cold_[i].cell;
-    if (grid_.interior(c)) {  // fixed linear offsets, no image shift
-      // Collect first, prefetching each candidate's shell, then test (as for_neighbours).
-      const int lin = linear(c);
-      const Vec<D> zero = Vec<D>::Zero();
-      constexpr int kBuf = 256;
-      int buf[kBuf];
-      int n = 0;
-      for (const int off : grid_.offsets())
-        for (int j = head_[lin + off]; j >= 0; j = next_[j]) {
-          if (j == i) continue;
-          if (n < kBuf) {
-            __builtin_prefetch(&shell_c_[j]);
-            buf[n++] = j;
-          } else {
-            add(j, zero);
-          }
-        }
-      for (int m = 0; m < n; ++m) add(buf[m], zero);
-      return;
-    }
-    grid_.around(c, [&](int lin, const Vec<D>& shift) {
-      for (int j = head_[lin]; j >= 0; j = next_[j])
-        if (j != i) add(j, shift);
-    });
+    walk_cells(i, add, [this](int j) { __builtin_prefetch(&shell_c_[j]); });
   }
   void build_lists() {
     for (int k = 0; k < D; ++k) any_periodic_ = any_periodic_ || sys_.periodic[k];
@@ -808,19 +790,7 @@ class EdmCore {
             return;
           }
           if (derived().ext_skip_neighbour(i, j)) return;
-          const double dtj = now - hj.t;
-          Vec<D> r = xi - hj.x - shift - hj.v * dtj;
-          Vec<D> v = vi - hj.v;
-          if (gravity_) {
-            r -= (0.5 * dtj * dtj) * g_;
-            v -= g_ * dtj;
-          }
-          const double dt = pair_collision_time(r, v, Ri + hj.R, best);
-          if (dt < best) {
-            best = dt;
-            type = kPair;
-            partner = j;
-          }
+          test_moving(Vec<D>(xi - hj.x - shift), vi, Ri, j, now, best, type, partner);
         },
         layer_axis, layer_dir);
   }
@@ -845,19 +815,27 @@ class EdmCore {
                    type, partner);
         continue;
       }
-      const double dtj = now - hj.t;
-      r -= hj.v * dtj;
-      Vec<D> v = vi - hj.v;
-      if (gravity_) {
-        r -= (0.5 * dtj * dtj) * g_;
-        v -= g_ * dtj;
-      }
-      const double dt = pair_collision_time(r, v, Ri + hj.R, best);
-      if (dt < best) {
-        best = dt;
-        type = kPair;
-        partner = j;
-      }
+      test_moving(r, vi, Ri, j, now, best, type, partner);
+    }
+  }
+
+  // The pair time of i (at `now`, velocity vi, radius Ri) with moving j, whose stored position is
+  // d away from i's image (d = x_i - x_j with the image shift), kept if it beats best.
+  [[gnu::always_inline]] void test_moving(const Vec<D>& d, const Vec<D>& vi, double Ri, int j, double now,
+                                          double& best, std::uint8_t& type, int& partner) const {
+    const Hot<D>& hj = hot_[j];
+    const double dtj = now - hj.t;
+    Vec<D> r = d - hj.v * dtj;
+    Vec<D> v = vi - hj.v;
+    if (gravity_) {
+      r -= (0.5 * dtj * dtj) * g_;
+      v -= g_ * dtj;
+    }
+    const double dt = pair_collision_time(r, v, Ri + hj.R, best);
+    if (dt < best) {
+      best = dt;
+      type = kPair;
+      partner = j;
     }
   }
 

@@ -176,10 +176,10 @@ TEST(EdmLists, ResumedFromACheckpointTheRunIsTheSameBitForBit) {
 }
 
 TEST(EdmLists, AutoChoosesListsForADenseGasWithoutGravityOnly) {
-  EXPECT_TRUE(edm::lists_pay(0.45, false));
-  EXPECT_FALSE(edm::lists_pay(0.45, true));
+  EXPECT_TRUE(edm::lists_pay(0.48, false));
+  EXPECT_FALSE(edm::lists_pay(0.48, true));
   EXPECT_FALSE(edm::lists_pay(0.30, false));
-  for (const double phi : {0.3, 0.45}) {
+  for (const double phi : {0.3, 0.48}) {
     SCOPED_TRACE(phi);
     const System<3> sys = lattice_gas<3>(5, phi, 1.0, 1.0, 4);
     EdmSettings s;

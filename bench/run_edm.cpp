@@ -5,7 +5,8 @@
 //
 //   matep_bench_edm                  full table (N = 4k, 32k, 256k, 1M; a few minutes)
 //   matep_bench_edm --quick          N = 4k and 32k only
-//   matep_bench_edm --one N RHO QUEUE COLLISIONS_PER_PARTICLE   one measurement (internal)
+//   matep_bench_edm --one N RHO QUEUE COLLISIONS_PER_PARTICLE [SHELL]   one measurement (internal;
+//                    SHELL > 0: neighbour lists with shells of that size in diameters, else cells)
 #include <fmt/format.h>
 #include <sys/resource.h>
 #include <unistd.h>
@@ -78,7 +79,7 @@ int one(int n_side, double rho, const std::string& queue, double cpp, double she
   const double g = (1 - phi / 2) / std::pow(1 - phi, 3);
   const double omega = 24 * phi * g / std::sqrt(std::numbers::pi);
   EdmSettings set;
-  if (shell > 0.0) {  // neighbour lists with shells of this half-width (in diameters)
+  if (shell > 0.0) {  // neighbour lists, shells of this radius (in diameters)
     set.lists = true;
     set.shell = shell;
   }

@@ -581,7 +581,7 @@ class EdmCore {
   // cells around a centre hold every particle whose shell may come within reach.
   bool lists_ = false;
   bool sphere_ = false;       // ball shells (no gravity); else cubes
-  double shell_ = 0.0;        // the shells' half-width
+  double shell_ = 0.0;        // the shells' radius (cubes: half-width)
   int nb_cap_ = 0;            // entries per particle in nb_ (grown when a list would overflow)
   // A shell's centre and its particle's radius, side by side (what a list build reads of each
   // candidate).
@@ -949,6 +949,23 @@ class EdmCore {
     c.last = now_;
   }
 
+  // i (at t) reaches the domain's face along axis k (up: the upper one): an open face takes it out
+  // of the run and a closed one stops the run (false either way); across a periodic face it wraps
+  // by exactly one period (true). The cell crossing's and the shell exit's common end.
+  bool cross_domain_face(int i, int k, bool up, double t) {
+    if (!sys_.periodic[k]) {
+      if (const int o = face_outlet_[static_cast<std::size_t>(2 * k + (up ? 1 : 0))]; o >= 0)
+        remove_particle(i, t, o);
+      else {
+        status_ = "escaped";
+        message_ = escape_message(ids_.user(static_cast<std::uint64_t>(i)), k, t, hot_[i].x[k]);
+      }
+      return false;
+    }
+    hot_[i].x[k] += up ? -L_[k] : L_[k];
+    return true;
+  }
+
   // i leaves its shell at t: through a face of the domain as a cell crossing would (an open face
   // takes it out, a closed one stops the run, a periodic one wraps it), then a new shell and list
   // about its centre, and the pairs of the new list tested against its stored event (its course
@@ -958,18 +975,8 @@ class EdmCore {
     ++counts_.cell;
     const int k = cold_[i].aux / 2;
     const bool up = cold_[i].aux & 1;
-    if (cold_[i].aux != 0xFF && (sphere_ || (up ? shell_hi(i, k) == hi_[k] : shell_lo(i, k) == lo_[k]))) {
-      if (!sys_.periodic[k]) {
-        if (const int o = face_outlet_[static_cast<std::size_t>(2 * k + (up ? 1 : 0))]; o >= 0) {
-          remove_particle(i, t, o);
-          return;
-        }
-        status_ = "escaped";
-        message_ = escape_message(ids_.user(static_cast<std::uint64_t>(i)), k, t, hot_[i].x[k]);
-        return;
-      }
-      hot_[i].x[k] += up ? -L_[k] : L_[k];  // exactly one period
-    }
+    const bool at_face = cold_[i].aux != 0xFF && (sphere_ || (up ? shell_hi(i, k) == hi_[k] : shell_lo(i, k) == lo_[k]));
+    if (at_face && !cross_domain_face(i, k, up, t)) return;
     relist(i);
     predict_after_crossing(i, t, -1, 0);
   }
@@ -985,23 +992,12 @@ class EdmCore {
       ++counts_.cell;
       const int k = cold_[i].aux / 2;
       const bool up = cold_[i].aux & 1;
-      cell_remove(i);
       int c = cold_[i].cell[k] + (up ? 1 : -1);
       if (c < 0 || c >= grid_.count(k)) {
-        if (!sys_.periodic[k]) {
-          if (const int o = face_outlet_[static_cast<std::size_t>(2 * k + (up ? 1 : 0))]; o >= 0) {
-            remove_particle(i, t, o, /*in_cell=*/false);  // an open face: the grain leaves the run
-            return;
-          }
-          cell_insert(i);
-          status_ = "escaped";
-          message_ = escape_message(ids_.user(static_cast<std::uint64_t>(i)), k, t, hot_[i].x[k]);
-          return;
-        }
-        // The periodic wrap of a particle on the face it crosses: exactly one period.
+        if (!cross_domain_face(i, k, up, t)) return;
         c = up ? 0 : grid_.count(k) - 1;
-        hot_[i].x[k] += up ? -L_[k] : L_[k];
       }
+      cell_remove(i);
       cold_[i].cell[k] = c;
       cell_insert(i);
       predict_after_crossing(i, t, k, up ? 1 : -1);
@@ -1042,8 +1038,8 @@ class EdmCore {
   // Takes grain i (at time t) out of the run through outlet o (an index into System::outlets): out
   // of its cell and the queue, its counter bumped so that every prediction with it is stale, and its
   // departure reported to the observers (outflow.csv, the event log).
-  void remove_particle(int i, double t, int o, bool in_cell = true) {
-    if (in_cell) cell_remove(i);
+  void remove_particle(int i, double t, int o) {
+    cell_remove(i);
     if (lists_) unlist(i);
     queue_->erase(i);
     ++cold_[i].counter;

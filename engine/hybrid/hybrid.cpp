@@ -185,6 +185,7 @@ class HybridEngine final : public edm::EdmCore<D, CalendarQueue, HybridEngine<D>
     }
     cblo_.assign(N_, Vec<D>::Constant(kNever));  // empty: the first substep relocates
     cbhi_.assign(N_, Vec<D>::Constant(-kNever));
+    cfree2_.assign(N_, -1.0);
   }
   void ext_start() { hybrid_start(); }
   // Soft, pending and sleeping neighbours take no part in a hard particle's pair predictions (a
@@ -656,6 +657,7 @@ class HybridEngine final : public edm::EdmCore<D, CalendarQueue, HybridEngine<D>
     iface_flag_[i] = 0;
     cblo_[i].setConstant(kNever);  // relocate at the first substep (the box may be stale)
     cbhi_[i].setConstant(-kNever);
+    cfree2_[i] = -1.0;
     slot_[i] = static_cast<int>(soft_.size());
     soft_.push_back(i);
     // Ballistic until now: v(t - h/2) = v(t) - h/2 g and a(t - h) = g, so that the predicted
@@ -988,6 +990,7 @@ class HybridEngine final : public edm::EdmCore<D, CalendarQueue, HybridEngine<D>
   // spring it had (mem).
   void build_row(int i, double t, const soft::SpringMemory<D>& mem, BuildSink& out) {
     x0_[i] = hot_[i].x;
+    set_free_reach(i);
     const Vec<D> xi = hot_[i].x;
     const double Ri = hot_[i].R;
     out.pairs.begin_row(ui(i));
@@ -1163,12 +1166,29 @@ class HybridEngine final : public edm::EdmCore<D, CalendarQueue, HybridEngine<D>
       cbhi_[i][k] = c[k] == nk - 1 ? (closed ? std::nextafter(hi_[k] + h.R, kNever) : hi_[k])
                                    : lo_[k] + (c[k] + 1) * cw;
     }
+    set_free_reach(i);
     if (c != cold_[i].cell) {
       cell_remove(i);
       cold_[i].cell = c;
       cell_insert(i);
       mark_neighbours(i);
     }
+  }
+
+  // cfree2_[i]: the square of how far soft i may move from x0_[i] and stay inside its cell's box
+  // (cblo_, cbhi_), -1 when x0_[i] is not inside it. The drift tests the box only beyond that
+  // distance (kick_drift gives it): most substeps of a bed then read one number instead of the
+  // box. The distance is shortened by 1e-9 of the box's coordinates, far more than the round-off
+  // of x - x0 and of the distance itself, so that a grain within it is inside the box exactly as
+  // the box test would find.
+  void set_free_reach(int i) {
+    double m = kNever, scale = 0.0;
+    for (int k = 0; k < D; ++k) {
+      m = std::min({m, x0_[i][k] - cblo_[i][k], cbhi_[i][k] - x0_[i][k]});
+      scale = std::max({scale, std::abs(cblo_[i][k]), std::abs(cbhi_[i][k])});
+    }
+    m -= 1e-9 * (scale + m);
+    cfree2_[i] = m > 0.0 ? m * m : -1.0;
   }
 
   // One TDM substep at time t (README "Hybrid dynamics", "Substeps").
@@ -1181,6 +1201,7 @@ class HybridEngine final : public edm::EdmCore<D, CalendarQueue, HybridEngine<D>
     Hot<D>* const HOT = hot_.data();
     const Vec<D>* const BLO = cblo_.data();
     const Vec<D>* const BHI = cbhi_.data();
+    const double* const FREE2 = cfree2_.data();
     // (Raw pointers: the stores would otherwise make the compiler reload every vector's data
     // pointer at each particle.)
     Vec<D>* const FF = f_.data();
@@ -1198,7 +1219,7 @@ class HybridEngine final : public edm::EdmCore<D, CalendarQueue, HybridEngine<D>
     const int* const SOFT = soft_.data();
     const std::size_t nsoft = soft_.size();
     const bool rot = rot_;
-    parallel(T, [&, h, lim2, g, HOT, BLO, BHI, FF, AC, VH, X0, MINV, SOFT, nsoft, rot, outlets](int th) {
+    parallel(T, [&, h, lim2, g, HOT, BLO, BHI, FREE2, FF, AC, VH, X0, MINV, SOFT, nsoft, rot, outlets](int th) {
       bool dirty = false;
       std::vector<int>& reloc = t_relocate_[th];
       std::vector<std::pair<int, int>>& leave = t_leaving_[th];
@@ -1206,7 +1227,8 @@ class HybridEngine final : public edm::EdmCore<D, CalendarQueue, HybridEngine<D>
       leave.clear();
       for (std::size_t k = nsoft * th / T, end = nsoft * (th + 1) / T; k < end; ++k) {
         const int i = SOFT[k];
-        dirty |= soft::kick_drift<D>(FF[i], AC[i], VH[i], HOT[i].x, X0[i], MINV[i], g, h, lim2);
+        double d2;
+        dirty |= soft::kick_drift<D>(FF[i], AC[i], VH[i], HOT[i].x, X0[i], MINV[i], g, h, lim2, d2);
         if (rot) soft::kick_spin(tq_[i], alpha_[i], wh_[i], iinv_[i], h);
         HOT[i].t = t;
         const Vec<D>& x = HOT[i].x;
@@ -1217,7 +1239,8 @@ class HybridEngine final : public edm::EdmCore<D, CalendarQueue, HybridEngine<D>
           }
         }
         // Still inside the box of its cell (edge cells of closed axes: up to the escape limit;
-        // NaN fails the test): no cell update.
+        // NaN fails the test): no cell update. Within cfree2_ of x0, it is (set_free_reach).
+        if (d2 < FREE2[i]) continue;
         if (!((x.array() >= BLO[i].array()).all() && (x.array() < BHI[i].array()).all())) reloc.push_back(i);
       }
       moved[th] = dirty;
@@ -1889,6 +1912,7 @@ class HybridEngine final : public edm::EdmCore<D, CalendarQueue, HybridEngine<D>
         slot_[j] = static_cast<int>(soft_.size());
         soft_.push_back(j);
         x0_[j] = hot_[j].x;
+        set_free_reach(j);
         hot_[j].t = t;
         last_contact_[j] = t;
         --asleep_;
@@ -2035,6 +2059,9 @@ class HybridEngine final : public edm::EdmCore<D, CalendarQueue, HybridEngine<D>
     a(since_cost_check_);
     a(sg_w_);
     a(sgrid_);
+    // (cfree2_ follows from x0_ and the boxes: made again, not stored)
+    cfree2_.resize(x0_.size());
+    for (std::size_t i = 0; i < x0_.size(); ++i) set_free_reach(static_cast<int>(i));
   }
 
   // Hybrid state.
@@ -2124,6 +2151,7 @@ class HybridEngine final : public edm::EdmCore<D, CalendarQueue, HybridEngine<D>
   CellGrid<D> sgrid_;
   bool any_periodic_ = false;
   std::vector<Vec<D>> cblo_, cbhi_;  // the box a soft particle may move in without relocating
+  std::vector<double> cfree2_;       // how far (squared) from x0_ it stays inside it (set_free_reach)
   std::vector<int> freed_;           // soft particles released at this substep
   std::vector<std::pair<int, int>> leaving_;  // (soft particle, outlet) entered at this substep
   std::vector<int> unsupported_;     // sleepers that touched a grain that left

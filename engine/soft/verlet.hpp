@@ -14,12 +14,13 @@ namespace matep::soft {
 
 // One kick and drift of particle i with force f (cleared here for the next accumulation): stores
 // a, v and x, and returns whether the particle is now more than sqrt(lim2) from x0 (the position of
-// the last neighbour-list build; a non-finite position counts as moved). Written out by component:
-// this runs once per particle and step and its memory traffic is most of a dilute gas's cost (a
-// force that is already zero is not written again).
+// the last neighbour-list build; a non-finite position counts as moved); d2out receives the squared
+// distance from x0 (NaN for a non-finite position). Written out by component: this runs once per
+// particle and step and its memory traffic is most of a dilute gas's cost (a force that is already
+// zero is not written again).
 template <int D>
 [[gnu::always_inline]] inline bool kick_drift(Vec<D>& force, Vec<D>& acc, Vec<D>& vel, Vec<D>& pos, const Vec<D>& x0,
-                                              double minv, const Vec<D>& g, double dt, double lim2) {
+                                              double minv, const Vec<D>& g, double dt, double lim2, double& d2out) {
   double* f = force.data();
   double* a = acc.data();
   double* v = vel.data();
@@ -38,7 +39,14 @@ template <int D>
   }
   if (nonzero)
     for (int k = 0; k < D; ++k) f[k] = 0.0;
+  d2out = d2;
   return !(d2 <= lim2);
+}
+template <int D>
+[[gnu::always_inline]] inline bool kick_drift(Vec<D>& force, Vec<D>& acc, Vec<D>& vel, Vec<D>& pos, const Vec<D>& x0,
+                                              double minv, const Vec<D>& g, double dt, double lim2) {
+  double d2;
+  return kick_drift<D>(force, acc, vel, pos, x0, minv, g, dt, lim2, d2);
 }
 
 // The spin's kick: alpha = torque / I, w(t + h/2) = w(t - h/2) + h alpha; the torque is cleared.

@@ -111,6 +111,9 @@ class EdmCore {
   // Whether the core may find pair candidates from per-particle neighbour lists (EdmSettings::
   // lists); an extension that walks the cells by current position (the hybrid) keeps the cells.
   bool ext_lists() const { return true; }
+  // Whether the run may stop now on a stop request (an extension a step ahead says no; it must
+  // then be ready at a later poll).
+  bool ext_can_stop() const { return true; }
 
   // The scene's id of each particle, when the engine runs its grains in another order
   // (engine/renumber.hpp): the messages name grains by it.
@@ -284,7 +287,8 @@ class EdmCore {
     while (!queue_->empty()) {
       // A stop request (a signal): leave before the next event, with the state after the last
       // (saved first when the run keeps checkpoints).
-      if ((++polls & 0x3ff) == 0 && set_.stop && set_.stop->load(std::memory_order_relaxed)) {
+      if ((++polls & 0x3ff) == 0 && set_.stop && set_.stop->load(std::memory_order_relaxed) &&
+          derived().ext_can_stop()) {
         status_ = "interrupted";
         message_ = fmt::format("stopped on request at t = {:.17g}", now_);
         save_checkpoint(now_);

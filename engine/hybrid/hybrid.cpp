@@ -152,7 +152,8 @@ class HybridEngine final : public edm::EdmCore<D, CalendarQueue, HybridEngine<D>
 
   // ---- hooks of the EDM core ----
   void ext_setup() { hybrid_setup(given_settings_, given_plan_); }
-  bool ext_lists() const { return false; }  // capture and the soft lists walk the cells by position
+  bool ext_lists() const { return false; }
+  bool ext_can_stop() const { return !predrifted_; }  // the soft set is at the time of the run  // capture and the soft lists walk the cells by position
   // The EDM cells reach every grain a capture may need (the largest capture distance), not the
   // soft list's skin: wider cells cost every hard prediction (a 500-grain gas at phi = 0.4 with no
   // soft grain: 1.3 x EDM's time with the list skin, 1.06 x with this margin). The few walks that
@@ -339,7 +340,7 @@ class HybridEngine final : public edm::EdmCore<D, CalendarQueue, HybridEngine<D>
                          particle_collisions());
       if (hset_.cost_measured && (hstats_.substeps & 0x3f) == 0) follow_measured_cost();
       // A stop request (a signal), after whole substeps: the soft set is then at t like the rest.
-      if (status_.empty() && (hstats_.substeps & 0x3f) == 0 && set_.stop &&
+      if (status_.empty() && (hstats_.substeps & 0x3f) == 0 && !predrifted_ && set_.stop &&
           set_.stop->load(std::memory_order_relaxed)) {
         status_ = "interrupted";
         message_ = fmt::format("stopped on request at t = {:.17g}", t);
@@ -1191,64 +1192,96 @@ class HybridEngine final : public edm::EdmCore<D, CalendarQueue, HybridEngine<D>
     cfree2_[i] = m > 0.0 ? m * m : -1.0;
   }
 
+  // The drift of one soft grain (engine/soft/verlet.hpp) to the substep at time tn, with the
+  // forces of the substep before: it returns whether the grain moved beyond half the list skin
+  // and notes whether it entered an outlet (leave) or left its cell's box (reloc). A copy of the
+  // engine's pointers, so that the loops keep them in registers (the flag is returned, not
+  // stored: a byte store would make the compiler reload every pointer at each grain).
+  struct Drift {
+    Hot<D>* HOT;
+    const Vec<D>* BLO;
+    const Vec<D>* BHI;
+    const double* FREE2;
+    Vec<D>* FF;
+    Vec<D>* AC;
+    Vec<D>* VH;
+    const Vec<D>* X0;
+    const double* MINV;
+    Spin<D>* TQ;
+    Spin<D>* AL;
+    Spin<D>* WH;
+    const double* IINV;
+    Vec<D> g;
+    double h, lim2;
+    bool rot, outlets;
+    const System<D>* sys;
+
+    [[gnu::always_inline]] bool operator()(int i, double tn, std::vector<int>& reloc,
+                                           std::vector<std::pair<int, int>>& leave) const {
+      double d2;
+      const bool moved = soft::kick_drift<D>(FF[i], AC[i], VH[i], HOT[i].x, X0[i], MINV[i], g, h, lim2, d2);
+      if (rot) soft::kick_spin(TQ[i], AL[i], WH[i], IINV[i], h);
+      HOT[i].t = tn;
+      const Vec<D>& x = HOT[i].x;
+      if (outlets) [[unlikely]] {
+        if (const int o = sys->outlet_at(x); o >= 0) {
+          leave.emplace_back(i, o);
+          return moved;
+        }
+      }
+      // Still inside the box of its cell (edge cells of closed axes: up to the escape limit;
+      // NaN fails the test): no cell update. Within cfree2_ of x0, it is (set_free_reach).
+      if (!(d2 < FREE2[i]) && !((x.array() >= BLO[i].array()).all() && (x.array() < BHI[i].array()).all()))
+        reloc.push_back(i);
+      return moved;
+    }
+  };
+  Drift drift_kernel() {
+    return Drift{hot_.data(), cblo_.data(), cbhi_.data(), cfree2_.data(), f_.data(), acc_.data(), vh_.data(),
+                 x0_.data(), minv_.data(), tq_.data(), alpha_.data(), wh_.data(), iinv_.data(), g_, h_,
+                 0.25 * lskin_ * lskin_, rot_, !sys_.outlets.empty(), &sys_};
+  }
+
   // One TDM substep at time t (README "Hybrid dynamics", "Substeps").
   void substep(double t) {
     if ((++hstats_.substeps & 0x3ff) == 0)  // progress: events so far, substeps included
       for (auto* o : observers_) o->on_progress(t, counts_.total() + hstats_.substeps);
-    // 1. Drift the awake soft particles from t - h to t with the forces of t - h (engine/soft/verlet.hpp).
-    const double h = h_, lim2 = 0.25 * lskin_ * lskin_;
-    const Vec<D> g = g_;
-    Hot<D>* const HOT = hot_.data();
-    const Vec<D>* const BLO = cblo_.data();
-    const Vec<D>* const BHI = cbhi_.data();
-    const double* const FREE2 = cfree2_.data();
-    // (Raw pointers: the stores would otherwise make the compiler reload every vector's data
-    // pointer at each particle.)
-    Vec<D>* const FF = f_.data();
-    Vec<D>* const AC = acc_.data();
-    Vec<D>* const VH = vh_.data();
-    const Vec<D>* const X0 = x0_.data();
-    const double* const MINV = minv_.data();
-    const bool outlets = !sys_.outlets.empty();
+    // 1. Drift the awake soft particles from t - h to t with the forces of t - h (engine/soft/verlet.hpp),
+    // unless the last substep's closing pass did (predrifted_, see step 5): then only its notes
+    // are handled here, in the order of the soft set as it is now, as the drift would have.
     // (Threads: each drifts a range of the soft set and lists the grains that left their cell box
-    // or entered an outlet; those are handled after, in soft-set order, as one thread would. The
-    // loop keeps its pointers and its flag in locals: a byte store through a captured reference
-    // would make the compiler reload every pointer at each particle.)
+    // or entered an outlet; those are handled after, in soft-set order, as one thread would.)
     const int T = threads_for(soft_.size());
-    std::array<std::uint8_t, kMaxThreads> moved{};
-    const int* const SOFT = soft_.data();
-    const std::size_t nsoft = soft_.size();
-    const bool rot = rot_;
-    parallel(T, [&, h, lim2, g, HOT, BLO, BHI, FREE2, FF, AC, VH, X0, MINV, SOFT, nsoft, rot, outlets](int th) {
-      bool dirty = false;
-      std::vector<int>& reloc = t_relocate_[th];
-      std::vector<std::pair<int, int>>& leave = t_leaving_[th];
-      reloc.clear();
-      leave.clear();
-      for (std::size_t k = nsoft * th / T, end = nsoft * (th + 1) / T; k < end; ++k) {
-        const int i = SOFT[k];
-        double d2;
-        dirty |= soft::kick_drift<D>(FF[i], AC[i], VH[i], HOT[i].x, X0[i], MINV[i], g, h, lim2, d2);
-        if (rot) soft::kick_spin(tq_[i], alpha_[i], wh_[i], iinv_[i], h);
-        HOT[i].t = t;
-        const Vec<D>& x = HOT[i].x;
-        if (outlets) [[unlikely]] {
-          if (const int o = sys_.outlet_at(x); o >= 0) {
-            leave.emplace_back(i, o);
-            continue;
-          }
-        }
-        // Still inside the box of its cell (edge cells of closed axes: up to the escape limit;
-        // NaN fails the test): no cell update. Within cfree2_ of x0, it is (set_free_reach).
-        if (d2 < FREE2[i]) continue;
-        if (!((x.array() >= BLO[i].array()).all() && (x.array() < BHI[i].array()).all())) reloc.push_back(i);
+    if (predrifted_) {
+      predrifted_ = false;
+      if (predrift_moved_) dirty_ = true;
+      std::vector<int>& reloc = t_relocate_[0];
+      for (int th = 1; th < predrift_T_; ++th) reloc.insert(reloc.end(), t_relocate_[th].begin(), t_relocate_[th].end());
+      std::sort(reloc.begin(), reloc.end(), [&](int a, int b) { return slot_[a] < slot_[b]; });
+      for (const int i : reloc) relocate(i, t);
+      for (int th = 0; th < predrift_T_; ++th)
+        leaving_.insert(leaving_.end(), t_leaving_[th].begin(), t_leaving_[th].end());
+    } else {
+      std::array<std::uint8_t, kMaxThreads> moved{};
+      const int* const SOFT = soft_.data();
+      const std::size_t nsoft = soft_.size();
+      const Drift drift = drift_kernel();
+      parallel(T, [&, drift, SOFT, nsoft, t](int th) {
+        bool dirty = false;
+        std::vector<int>& reloc = t_relocate_[th];
+        std::vector<std::pair<int, int>>& leave = t_leaving_[th];
+        reloc.clear();
+        leave.clear();
+        const Drift dr = drift;  // (a local copy: its pointers stay in registers)
+        for (std::size_t k = nsoft * th / T, end = nsoft * (th + 1) / T; k < end; ++k)
+          dirty |= dr(SOFT[k], t, reloc, leave);
+        moved[th] = dirty;
+      });
+      for (int th = 0; th < T; ++th) {
+        if (moved[th]) dirty_ = true;
+        for (const int i : t_relocate_[th]) relocate(i, t);
+        leaving_.insert(leaving_.end(), t_leaving_[th].begin(), t_leaving_[th].end());
       }
-      moved[th] = dirty;
-    });
-    for (int th = 0; th < T; ++th) {
-      if (moved[th]) dirty_ = true;
-      for (const int i : t_relocate_[th]) relocate(i, t);
-      leaving_.insert(leaving_.end(), t_leaving_[th].begin(), t_leaving_[th].end());
     }
     hstats_.soft_particle_steps += soft_.size();
     if (!leaving_.empty()) remove_soft(t);
@@ -1269,23 +1302,41 @@ class HybridEngine final : public edm::EdmCore<D, CalendarQueue, HybridEngine<D>
     soft_forces(t);
     if (t == 0.0) start_soft_state();
     if (asleep_ > 0 && !watched_.empty()) wake_loaded(t);
-    // 5. Full-step velocities; release and rest.
+    // 5. Full-step velocities; release and rest. When nothing can happen before the next
+    // substep but that substep (fuse_next), the same pass also drifts each grain that stays soft
+    // to it (step 1 of the next substep, which then only handles the drift's notes): one pass
+    // over the soft set instead of two, with the same arithmetic on the same values.
     double vmax2 = 0.0;
     const double hdt = hdt_, hyst = hyst_;
     const Vec<D>* const F5 = f_.data();
     const Vec<D>* const VH5 = vh_.data();
+    const double* const MINV = minv_.data();
+    Hot<D>* const HOT = hot_.data();
+    const Vec<D> g = g_;
+    const bool rot = rot_;
     std::uint8_t* const TOUCHING = touching_.data();
     std::uint8_t* const NEAR = near_.data();
     double* const LAST = last_contact_.data();
     freed_.clear();
     const int T5 = threads_for(soft_.size());
     std::array<double, kMaxThreads> vmax{};
+    std::array<std::uint8_t, kMaxThreads> moved{};
     const int* const SOFT5 = soft_.data();  // the soft set has changed since the drift (joins)
     const std::size_t n5 = soft_.size();
-    parallel(T5, [&, hdt, hyst, g, HOT, F5, VH5, MINV, TOUCHING, NEAR, LAST, SOFT5, n5, rot, t](int th) {
+    const double tn = clock_t0_ + static_cast<double>(clock_n_ + 1) * h_;  // the next substep's time
+    const bool fuse = fuse_next(tn);
+    const Drift drift = drift_kernel();
+    parallel(T5, [&, hdt, hyst, g, HOT, F5, VH5, MINV, TOUCHING, NEAR, LAST, SOFT5, n5, rot, t, tn, fuse,
+                  drift](int th) {
       double vm2 = 0.0;
+      bool dirty = false;
       std::vector<int>& freed = t_freed_[th];
+      std::vector<int>& reloc = t_relocate_[th];
+      std::vector<std::pair<int, int>>& leave = t_leaving_[th];
       freed.clear();
+      reloc.clear();
+      leave.clear();
+      const Drift dr = drift;  // (a local copy: its pointers stay in registers)
       for (std::size_t k = n5 * th / T5, end = n5 * (th + 1) / T5; k < end; ++k) {
         const int i = SOFT5[k];
         const Vec<D> v = soft::full_step<D>(VH5[i], F5[i], MINV[i], g, hdt);
@@ -1293,15 +1344,27 @@ class HybridEngine final : public edm::EdmCore<D, CalendarQueue, HybridEngine<D>
         vm2 = std::max(vm2, v.squaredNorm());
         if (rot) sys_.w[i] = wh_[i] + hdt * (tq_[i] * iinv_[i]);
         const bool touching = TOUCHING[i], near = NEAR[i];
-        if (touching) LAST[i] = t;
-        else if (!near && t - LAST[i] >= hyst) freed.push_back(i);
         TOUCHING[i] = NEAR[i] = 0;
+        if (touching) {
+          LAST[i] = t;
+        } else if (!near && t - LAST[i] >= hyst) {
+          freed.push_back(i);  // released at t below: not drifted
+          continue;
+        }
+        if (fuse) dirty |= dr(i, tn, reloc, leave);
       }
       vmax[th] = vm2;
+      moved[th] = dirty;
     });
     for (int th = 0; th < T5; ++th) {
       vmax2 = std::max(vmax2, vmax[th]);
       freed_.insert(freed_.end(), t_freed_[th].begin(), t_freed_[th].end());
+    }
+    if (fuse) {
+      predrifted_ = true;
+      predrift_T_ = T5;
+      predrift_moved_ = false;
+      for (int th = 0; th < T5; ++th) predrift_moved_ = predrift_moved_ || moved[th];
     }
     for (const int i : freed_) release(i, t);
     if (++since_cost_check_ >= cost_every_) {
@@ -1321,7 +1384,23 @@ class HybridEngine final : public edm::EdmCore<D, CalendarQueue, HybridEngine<D>
       queue_->set(substep_id_, clock_t0_ + static_cast<double>(clock_n_) * h_);
     } else {
       clock_ = false;
+      predrifted_ = false;  // nothing soft was drifted (every grain was released)
     }
+  }
+
+  // Whether the closing pass of the substep now ending may drift the soft set to the next one at
+  // tn: nothing else may happen before it (the earliest event of the queue is later: no sample,
+  // snapshot, checkpoint, inlet, end or hard collision sees the soft set a substep ahead), no rule
+  // that reads the soft set at this time runs after the pass (the cost release, the rest rule's
+  // check), and no stop has been asked for (a stopped run leaves with the soft set at its time).
+  // The grains released after the pass are not drifted; their new courses, predicted from t, meet
+  // no soft grain (hard courses skip soft neighbours).
+  bool fuse_next(double tn) {
+    if (!status_.empty() || t_relocate_.empty()) return false;
+    if (since_cost_check_ + 1 >= cost_every_) return false;
+    if (sleeping_ && since_sleep_check_ + 1 >= sleep_every_) return false;
+    if (set_.stop && set_.stop->load(std::memory_order_relaxed)) return false;
+    return queue_->empty() || queue_->top().second > tn;
   }
 
   // The soft grains that entered an outlet in this substep's drift (leaving_) leave the run with
@@ -2152,6 +2231,10 @@ class HybridEngine final : public edm::EdmCore<D, CalendarQueue, HybridEngine<D>
   bool any_periodic_ = false;
   std::vector<Vec<D>> cblo_, cbhi_;  // the box a soft particle may move in without relocating
   std::vector<double> cfree2_;       // how far (squared) from x0_ it stays inside it (set_free_reach)
+  // The last substep's closing pass drifted the soft set to this one (substep, step 5): its
+  // threads' notes are in t_relocate_, t_leaving_ (predrift_T_ of them), predrift_moved_.
+  bool predrifted_ = false, predrift_moved_ = false;
+  int predrift_T_ = 1;
   std::vector<int> freed_;           // soft particles released at this substep
   std::vector<std::pair<int, int>> leaving_;  // (soft particle, outlet) entered at this substep
   std::vector<int> unsupported_;     // sleepers that touched a grain that left

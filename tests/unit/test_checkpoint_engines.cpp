@@ -333,6 +333,46 @@ TEST(CheckpointEngines, HybridPourResumedMidSettling) {
   }
 }
 
+// A bed of 195 disks on a floor, every grain touching from the start (a triangular packing
+// overlapping by a tenth of what gravity presses: nothing bounces), so that the hybrid runs
+// substep after substep with no hard event between them: the closing pass of each substep then
+// also drifts the soft set to the next one (engine/hybrid/hybrid.cpp, fuse_next). A stop asked
+// for (after a random number of samples) must wait for a substep that leaves the soft set at the
+// run's time: a state saved a substep ahead would continue with the drift done twice, and a stop
+// that waited for good would end the run "ok" instead of "interrupted". (Checked: with the stop
+// taken whatever the state, the continued run differs.)
+TEST(CheckpointEngines, HybridSoftBedStopsBetweenWholeSubsteps) {
+  System<2> s;
+  const double d = 0.01, R = 0.5 * d, W = 20 * d;
+  s.lower = Vec<2>(0.0, 0.0);
+  s.upper = Vec<2>(W, 12 * d);
+  s.gravity = Vec<2>(0.0, -9.81);
+  s.materials.push_back(test::linear_material("glass", 2500.0, 2e7, 0.5));
+  s.walls.push_back(plane_wall<2>("floor", Vec<2>(0.0, 0.0), Vec<2>(0.0, 1.0)));
+  s.walls.push_back(plane_wall<2>("left", Vec<2>(0.0, 0.0), Vec<2>(1.0, 0.0)));
+  s.walls.push_back(plane_wall<2>("right", Vec<2>(W, 0.0), Vec<2>(-1.0, 0.0)));
+  const double a = (1.0 - 1e-6) * d;  // overlaps of 1e-6 d, a tenth of what gravity presses
+  for (int row = 0; row < 10; ++row)  // a triangular packing: rows of 20 and 19
+    for (int col = 0; col < 20 - row % 2; ++col) {
+      s.x.push_back(Vec<2>(R + (col + 0.5 * (row % 2)) * a, (1.0 - 1e-6) * R + row * a * std::sqrt(0.75)));
+      s.v.push_back(Vec<2>::Zero());
+      s.radius.push_back(R);
+      s.material.push_back(0);
+    }
+  auto run = [&](const CheckpointHooks* h, std::atomic<bool>* stop, Observer<2>* obs) {
+    EdmSettings e = edm_set(0.03, 0.001);
+    e.checkpoint = h;
+    e.stop = stop;
+    return run_hybrid<2>(s, e, HybridSettings{}, {obs});
+  };
+  Trace<2> probe;
+  const RunResult<2> ref = run(nullptr, nullptr, &probe);
+  ASSERT_EQ(ref.status, "ok") << ref.message;
+  EXPECT_EQ(ref.counts.pair + ref.counts.wall, 0u);  // no hard collision: substeps only
+  EXPECT_EQ(ref.hybrid.soft_at_end, 195u);
+  check_resume<2>(run, 13, "soft bed");
+}
+
 TEST(CheckpointEngines, EdmCasesResumeBitForBit) {
   check_case("rough_gas.toml", {"run.end_time=20", "output.thermo_interval=1"}, 12);
 }

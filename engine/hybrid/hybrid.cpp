@@ -152,8 +152,8 @@ class HybridEngine final : public edm::EdmCore<D, CalendarQueue, HybridEngine<D>
 
   // ---- hooks of the EDM core ----
   void ext_setup() { hybrid_setup(given_settings_, given_plan_); }
-  bool ext_lists() const { return false; }
-  bool ext_can_stop() const { return !predrifted_; }  // the soft set is at the time of the run  // capture and the soft lists walk the cells by position
+  bool ext_lists() const { return false; }  // capture and the soft lists walk the cells by position
+  bool ext_can_stop() const { return !predrifted_; }  // the soft set is at the run's time
   // The EDM cells reach every grain a capture may need (the largest capture distance), not the
   // soft list's skin: wider cells cost every hard prediction (a 500-grain gas at phi = 0.4 with no
   // soft grain: 1.3 x EDM's time with the list skin, 1.06 x with this margin). The few walks that

@@ -1252,15 +1252,11 @@ class HybridEngine final : public edm::EdmCore<D, CalendarQueue, HybridEngine<D>
     // (Threads: each drifts a range of the soft set and lists the grains that left their cell box
     // or entered an outlet; those are handled after, in soft-set order, as one thread would.)
     const int T = threads_for(soft_.size());
+    int notes = T;  // the threads whose notes (t_relocate_, t_leaving_) the drift left
     if (predrifted_) {
       predrifted_ = false;
+      notes = predrift_T_;
       if (predrift_moved_) dirty_ = true;
-      std::vector<int>& reloc = t_relocate_[0];
-      for (int th = 1; th < predrift_T_; ++th) reloc.insert(reloc.end(), t_relocate_[th].begin(), t_relocate_[th].end());
-      std::sort(reloc.begin(), reloc.end(), [&](int a, int b) { return slot_[a] < slot_[b]; });
-      for (const int i : reloc) relocate(i, t);
-      for (int th = 0; th < predrift_T_; ++th)
-        leaving_.insert(leaving_.end(), t_leaving_[th].begin(), t_leaving_[th].end());
     } else {
       std::array<std::uint8_t, kMaxThreads> moved{};
       const int* const SOFT = soft_.data();
@@ -1277,12 +1273,16 @@ class HybridEngine final : public edm::EdmCore<D, CalendarQueue, HybridEngine<D>
           dirty |= dr(SOFT[k], t, reloc, leave);
         moved[th] = dirty;
       });
-      for (int th = 0; th < T; ++th) {
+      for (int th = 0; th < T; ++th)
         if (moved[th]) dirty_ = true;
-        for (const int i : t_relocate_[th]) relocate(i, t);
-        leaving_.insert(leaving_.end(), t_leaving_[th].begin(), t_leaving_[th].end());
-      }
     }
+    // The grains that left their cell box, in the soft set's present order (a closing pass drifted
+    // them before the releases reordered it; the threads' parts are otherwise in that order).
+    std::vector<int>& reloc = t_relocate_[0];
+    for (int th = 1; th < notes; ++th) reloc.insert(reloc.end(), t_relocate_[th].begin(), t_relocate_[th].end());
+    std::sort(reloc.begin(), reloc.end(), [&](int a, int b) { return slot_[a] < slot_[b]; });
+    for (const int i : reloc) relocate(i, t);
+    for (int th = 0; th < notes; ++th) leaving_.insert(leaving_.end(), t_leaving_[th].begin(), t_leaving_[th].end());
     hstats_.soft_particle_steps += soft_.size();
     if (!leaving_.empty()) remove_soft(t);
     if (!status_.empty()) return;

@@ -56,6 +56,32 @@ inline Spin<D> lever_moment(const Vec<D>& r, const Vec<D>& f) {
   }
 }
 
+// The same two on plain numbers, for the batched loop's lanes (engine/soft/batch.hpp; Eigen's
+// vectors there would keep the loop from running lane-wise, and the plain form here would cost
+// the one-contact loops their speed). The same products in the same order: a test holds the two
+// forms equal bit for bit.
+template <int D>
+[[gnu::always_inline]] inline void spin_cross_to(const double* w, const double* r, double* out) {
+  if constexpr (D == 2) {
+    out[0] = -w[0] * r[1];
+    out[1] = w[0] * r[0];
+  } else {
+    out[0] = w[1] * r[2] - w[2] * r[1];
+    out[1] = w[2] * r[0] - w[0] * r[2];
+    out[2] = w[0] * r[1] - w[1] * r[0];
+  }
+}
+template <int D>
+[[gnu::always_inline]] inline void lever_moment_to(const double* r, const double* f, double* out) {
+  if constexpr (D == 2) {
+    out[0] = r[0] * f[1] - r[1] * f[0];
+  } else {
+    out[0] = r[1] * f[2] - r[2] * f[1];
+    out[1] = r[2] * f[0] - r[0] * f[2];
+    out[2] = r[0] * f[1] - r[1] * f[0];
+  }
+}
+
 // Moment of inertia factor q = I/(m R^2): solid sphere 2/5 (D = 3), solid disk 1/2 (D = 2).
 template <int D>
 inline constexpr double inertia_factor() {
@@ -413,16 +439,20 @@ inline SoftContact soft_contact(const SoftLaw& law, const PairParams& p) {
 // The normal force of each law, the one place its formula is written (see SoftContact), before
 // clipping, at overlap delta >= 0 and normal relative velocity vn = -delta' (< 0 approaching).
 template <NormalLaw Law>
-[[gnu::always_inline]] inline double normal_force_law(const SoftContact& c, double delta, double vn) {
+[[gnu::always_inline]] inline double normal_force_law(double kn, double gn, double delta, double vn) {
   if constexpr (Law == NormalLaw::Linear) {
-    return c.kn * delta - c.gn * vn;
+    return kn * delta - gn * vn;
   } else if constexpr (Law == NormalLaw::Hertz) {
     const double s = std::sqrt(delta);
-    return c.kn * delta * s - c.gn * std::sqrt(s) * vn;
+    return kn * delta * s - gn * std::sqrt(s) * vn;
   } else {
     const double s = std::sqrt(delta);
-    return c.kn * delta * s - c.gn * s * vn;
+    return kn * delta * s - gn * s * vn;
   }
+}
+template <NormalLaw Law>
+[[gnu::always_inline]] inline double normal_force_law(const SoftContact& c, double delta, double vn) {
+  return normal_force_law<Law>(c.kn, c.gn, delta, vn);
 }
 // Its spring part (no dashpot): k_n delta or k_n delta^3/2.
 template <NormalLaw Law>
@@ -511,6 +541,17 @@ inline Vec<D> contact_velocity(const Vec<D>& vi, const Spin<D>& wi, double li, c
   const Spin<D> w = li * wi + lj * wj;
   return vi - vj - spin_cross<D>(w, n);
 }
+// The same on plain numbers (as spin_cross_to).
+template <int D>
+[[gnu::always_inline]] inline void contact_velocity_to(const double* vi, const double* wi, double li,
+                                                       const double* vj, const double* wj, double lj,
+                                                       const double* n, double* out) {
+  constexpr int S = D == 2 ? 1 : 3;
+  double w[S], c[D];
+  for (int q = 0; q < S; ++q) w[q] = li * wi[q] + lj * wj[q];
+  spin_cross_to<D>(w, n, c);
+  for (int q = 0; q < D; ++q) out[q] = vi[q] - vj[q] - c[q];
+}
 
 template <int D>
 struct ContactKinematics {
@@ -583,64 +624,101 @@ template <int D, NormalLaw Law>
 //  4. if |F_t| > mu |F_n|: F_t <- mu |F_n| F_t/|F_t| (sliding), and the spring is rescaled so
 //     that it alone carries the cap, xi = -F_t/k_t (the dashpot does no work while sliding).
 // Law is the normal law known at compile time (the engine's hot loop); soft_contact_force()
-// below dispatches on c.normal at run time.
+// below dispatches on c.normal at run time. The arithmetic is contact_force_core's: plain numbers
+// and no branches (every case computed, the result selected; each value by the same operations in
+// the same order as the case alone would take), so that a loop over many contacts runs lane-wise
+// (engine/soft/batch.hpp). Sums of products are taken left to right.
+template <int D>
+[[gnu::always_inline]] inline double dot3(const double* a, const double* b) {
+  double s = a[0] * b[0];
+  for (int c = 1; c < D; ++c) s += a[c] * b[c];
+  return s;
+}
+template <int D>
+[[gnu::always_inline]] inline double dot3(const Vec<D>& a, const Vec<D>& b) {
+  return dot3<D>(a.data(), b.data());
+}
+// The contact's constants (kn, gn, kt, gt, mu, clip: SoftContact), overlap delta, unit normal n,
+// contact velocity v and tangential displacement dxi (ContactKinematics); xi: the spring, updated.
+// Out: the force on i, its tangential part, F_n after and before clipping, and whether it slides.
 template <int D, NormalLaw Law>
-[[gnu::always_inline]] inline ContactForce<D> soft_contact_force_law(const SoftContact& c,
-                                                                     const ContactKinematics<D>& k,
-                                                                     ContactHistory<D>& h) {
-  ContactForce<D> out;
-  const Vec<D>& n = k.n;
-  const double delta = k.delta > 0.0 ? k.delta : 0.0;
-  const double vn = k.v.dot(n);
+[[gnu::always_inline]] inline void contact_force_core(double kn, double gn, double kt, double gt, double mu, bool clip,
+                                                      double delta, const double* n, const double* v,
+                                                      const double* dxi, double* xi, double* force,
+                                                      double* tangential, double& normal, double& normal_raw,
+                                                      bool& sliding) {
+  delta = delta > 0.0 ? delta : 0.0;
+  const double vn = dot3<D>(v, n);
   // Normal force and the tangential coefficients at this overlap (see SoftContact).
-  const double fn = normal_force_law<Law>(c, delta, vn);
-  double kt = c.kt, gt = c.gt;
+  const double fn = normal_force_law<Law>(kn, gn, delta, vn);
   if constexpr (Law != NormalLaw::Linear) {
     const double s = std::sqrt(delta);
     kt *= s;
     gt *= Law == NormalLaw::Hertz ? std::sqrt(s) : s;
   }
-  out.normal_raw = fn;
-  out.normal = (c.clip && fn < 0.0) ? 0.0 : fn;
-  if (c.mu == 0.0 && h.xi.isZero(0.0)) {  // frictionless: no tangential force, no history
-    out.force = out.normal * n;
-    return out;
-  }
+  normal_raw = fn;
+  normal = (clip && fn < 0.0) ? 0.0 : fn;
+  // Frictionless with no spring: no tangential force, no history (selected at the end).
+  bool spring = false;
+  for (int q = 0; q < D; ++q) spring = spring || xi[q] != 0.0;
+  const bool none = mu == 0.0 && !spring;
 
-  Vec<D> xi = h.xi;
-  const double xin = xi.dot(n);
+  // 1. Into the tangent plane, keeping the length: multiply by 1/sqrt(1 - r), r = xin^2/l2.
+  // Between two steps the normal turns by a tiny angle and r ~ angle^2; for r < 1e-4 the series
+  // 1 + r/2 + 3r^2/8 errs by less than 5r^3/16. (xin = 0: xi is left as it is.) The rare cases
+  // sit in blocks that a lane-wise loop turns into selects and a one-contact call skips.
+  double x0[D], x[D];
+  for (int q = 0; q < D; ++q) x0[q] = x[q] = xi[q];
+  const double xin = dot3<D>(x0, n);
   if (xin != 0.0) {
-    const double l2 = xi.squaredNorm();
-    xi -= xin * n;
-    // Keep the length: multiply by 1/sqrt(1 - r), r = xin^2/l2. Between two steps the normal turns
-    // by a tiny angle and r ~ angle^2; the series 1 + r/2 + 3r^2/8 errs by less than 5r^3/16.
+    const double l2 = dot3<D>(x0, x0);
+    for (int q = 0; q < D; ++q) x[q] = x0[q] - xin * n[q];
     const double r = xin * xin / l2;
     if (r < 1e-4) {
-      xi *= 1.0 + r * (0.5 + 0.375 * r);
+      const double sc = 1.0 + r * (0.5 + 0.375 * r);
+      for (int q = 0; q < D; ++q) x[q] *= sc;
     } else {
-      const double m2 = xi.squaredNorm();
-      if (m2 > 0.0) {
-        xi *= std::sqrt(l2 / m2);
-      } else {
-        xi.setZero();
-      }
+      const double m2 = dot3<D>(x, x);
+      const double sc = m2 > 0.0 ? std::sqrt(l2 / (m2 > 0.0 ? m2 : 1.0)) : 0.0;
+      for (int q = 0; q < D; ++q) x[q] = m2 > 0.0 ? x[q] * sc : 0.0;
     }
   }
-  xi += k.dxi - k.dxi.dot(n) * n;
-  xi -= xi.dot(n) * n;  // round-off of a nearly normal dxi or of the rescaling
-  const Vec<D> vt = k.v - vn * n;
-  Vec<D> Ft = -kt * xi - gt * vt;
-  const double cap = c.mu * std::abs(out.normal);
-  const double f2 = Ft.squaredNorm();
-  if (f2 > cap * cap) {
-    Ft *= cap / std::sqrt(f2);
-    Ft -= Ft.dot(n) * n;  // v_t carries round-off along n; keep F_t and xi in the plane
-    xi = kt > 0.0 ? Vec<D>(-Ft / kt) : Vec<D>::Zero();
-    out.sliding = true;
+  // 2. The step's tangential displacement; round-off of a nearly normal dxi or of the rescaling
+  // removed.
+  const double dn = dot3<D>(dxi, n);
+  for (int q = 0; q < D; ++q) x[q] += dxi[q] - dn * n[q];
+  const double xn = dot3<D>(x, n);
+  for (int q = 0; q < D; ++q) x[q] -= xn * n[q];
+  // 3. The trial force.
+  double Ft[D];
+  for (int q = 0; q < D; ++q) Ft[q] = -kt * x[q] - gt * (v[q] - vn * n[q]);
+  // 4. The Coulomb cap (v_t carries round-off along n: F_t and xi are kept in the plane).
+  const double cap = mu * std::abs(normal);
+  const double f2 = dot3<D>(Ft, Ft);
+  const bool slides = f2 > cap * cap;
+  if (slides) {
+    const double fs = cap / std::sqrt(f2);
+    for (int q = 0; q < D; ++q) Ft[q] *= fs;
+    const double sn = dot3<D>(Ft, n);
+    for (int q = 0; q < D; ++q) Ft[q] -= sn * n[q];
+    for (int q = 0; q < D; ++q) x[q] = kt > 0.0 ? -Ft[q] / (kt > 0.0 ? kt : 1.0) : 0.0;
   }
-  h.xi = xi;
-  out.tangential = Ft;
-  out.force = out.normal * n + Ft;
+  for (int q = 0; q < D; ++q) {
+    tangential[q] = none ? 0.0 : Ft[q];
+    force[q] = none ? normal * n[q] : normal * n[q] + Ft[q];
+    xi[q] = none ? x0[q] : x[q];
+  }
+  sliding = !none && slides;
+}
+
+template <int D, NormalLaw Law>
+[[gnu::always_inline]] inline ContactForce<D> soft_contact_force_law(const SoftContact& c,
+                                                                     const ContactKinematics<D>& k,
+                                                                     ContactHistory<D>& h) {
+  ContactForce<D> out;
+  contact_force_core<D, Law>(c.kn, c.gn, c.kt, c.gt, c.mu, c.clip, k.delta, k.n.data(), k.v.data(), k.dxi.data(),
+                             h.xi.data(), out.force.data(), out.tangential.data(), out.normal, out.normal_raw,
+                             out.sliding);
   return out;
 }
 

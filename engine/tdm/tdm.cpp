@@ -13,6 +13,7 @@
 #include "engine/flatten.hpp"
 #include "engine/grid.hpp"
 #include "engine/soft/contact_rows.hpp"
+#include "engine/soft/batch.hpp"
 #include "engine/soft/forces.hpp"
 #include "engine/soft/springs.hpp"
 #include "engine/soft/verlet.hpp"
@@ -156,6 +157,7 @@ class TdmEngine {
   // Threads: particle ranges and per-thread accumulators.
   std::vector<std::uint32_t> lo_, hi_, wlo_, whi_;
   std::vector<std::vector<Spill<D>>> spill_;
+  std::vector<soft::ContactBatch<D>> batch_;  // each thread's scratch of the batched pair loop
   // boundary_[i]: i receives forces from a lower thread range (integrated after the spills).
   std::vector<std::uint8_t> boundary_;
   std::vector<std::uint32_t> boundary_list_;
@@ -406,6 +408,7 @@ void TdmEngine<D>::set_ranges() {
   T_ = std::max(1, std::min<int>(T_req_, static_cast<int>(N_ / kMinPerThread)));
   lo_.resize(T_);
   hi_.resize(T_);
+  if (batch_.size() < static_cast<std::size_t>(T_)) batch_.resize(T_);
   for (int t = 0; t < T_; ++t) {
     lo_[t] = static_cast<std::uint32_t>(N_ * t / T_);
     hi_[t] = static_cast<std::uint32_t>(N_ * (t + 1) / T_);
@@ -750,6 +753,10 @@ struct TdmEngine<D>::RangePolicy {
     scratch = eng.pair_coeffs(i, j);
     return scratch;
   }
+  // The batched loop's uniform constants (engine/soft/batch.hpp).
+  bool alt(std::uint32_t i, std::uint32_t j) const { return eng.is_fixed(i) || eng.is_fixed(j); }
+  const SoftContact& contact_main() const { return eng.cpair_; }
+  const SoftContact& contact_alt() const { return eng.cfixed_; }
   void began(std::uint32_t, std::uint32_t) { ++acc.new_pair; }
   void opened(std::uint32_t, std::uint32_t) {}
   void overlap(double delta, double Rs) {
@@ -798,8 +805,12 @@ MATEP_FLATTEN void TdmEngine<D>::pair_range(int t) {
   RangePolicy<Rot, Uniform, Law, Fuse, Roll> pol(*this, t);
   const auto rows = soft::PairRows<D>::of(nullptr, off_.data(), nb_.data(), sh_.data(), touch_.data(), xi_.data(),
                                           shifts_.data(), epsd_ ? mr_.data() : nullptr);
-  soft::pair_rows<D, Law, Rot, Roll>(soft::Arrays<D>{x_.data(), R_.data()}, soft::bodies_of(v_, acc_, f_, w_, alpha_, tq_),
-                               rows, lo_[t], hi_[t], dt_, pol);
+  const soft::Arrays<D> pos{x_.data(), R_.data()};
+  const auto bodies = soft::bodies_of(v_, acc_, f_, w_, alpha_, tq_);
+  if constexpr (Uniform && !Roll)
+    soft::pair_rows_batched<D, Law, Rot>(pos, bodies, rows, lo_[t], hi_[t], dt_, pol, batch_[t]);
+  else
+    soft::pair_rows<D, Law, Rot, Roll>(pos, bodies, rows, lo_[t], hi_[t], dt_, pol);
   acc_t_[t].moved = pol.moved;
 }
 

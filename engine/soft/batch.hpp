@@ -1,0 +1,229 @@
+// The batched form of the soft path's pair loop (engine/soft/forces.hpp pair_rows), for TDM's
+// rows: the same physics, the same arithmetic in the same order, laid out so that the contact
+// formulas run lane-wise (SIMD) over many contacts at once instead of one contact's long chain of
+// square roots and divisions at a time. The rows' entries are walked in order and done a batch
+// of kCap contacts at a time, in three passes:
+//   1. compaction: every list entry's distance; an entry in contact is appended to the batch
+//      (entry, particles, separation, whether it begins now), a contact that has opened closes;
+//   2. the contact kernel over the batch, lane by lane (the bodies' velocities read by index):
+//      normal, onset weight, kinematics, the law (contact/soft.hpp contact_force_core, the one
+//      place its formula is written), the spring read and written back;
+//   3. accumulation in list order: each row's force and torque summed and added once (a row
+//      may span two batches), the partners' through the policy (thread ranges); then the
+//      policy's row_done (walls, fused integration) for every row whose entries are all done.
+//      Partners j > i, so a row's particle is complete then, and every force is summed in the
+//      order pair_rows sums it: the results are bit-identical to pair_rows's.
+// Only for uniform constants (one pair law and, for fixed grains, one other) without rolling
+// resistance, sleepers, owners or sparse rows; anything else runs pair_rows.
+#pragma once
+
+#include <array>
+#include <cmath>
+#include <cstdint>
+#include <limits>
+
+#include "engine/soft/forces.hpp"
+
+namespace matep::soft {
+
+template <int D>
+struct ContactBatch {
+  static constexpr int S = D == 3 ? 3 : 1;  // spin components
+  static constexpr int kCap = 256;          // contacts per batch
+  // Columns (column c holds entries c kCap .. c kCap + kCap - 1): in, the separation, R_i + R_j
+  // and the squared distance; out, the overlap, the force on i, l_i m (i's torque is minus it)
+  // and j's torque.
+  enum : int { kDx = 0, kRs = kDx + D, kR2, kDelta, kF, kTi = kF + D, kTj = kTi + S, kColumns = kTj + S };
+  alignas(64) std::array<double, kCap * kColumns> col;
+  alignas(64) std::array<std::uint32_t, kCap> i, j, e;
+  alignas(64) std::array<std::uint8_t, kCap> alt, fresh;  // alt: the fixed-grain constants; fresh: begun now
+};
+
+// Pair forces of rows [r0, r1) (rows are particles: no owners), the policy as for pair_rows plus
+//   bool alt(i, j);  const SoftContact& contact_main();  const SoftContact& contact_alt();
+// (the uniform constants: a pair of moving grains, and a pair with a fixed grain; one law).
+template <int D, NormalLaw Law, bool Rot, class Policy>
+[[gnu::always_inline]] inline void pair_rows_batched(const Arrays<D> P, const Bodies<D>& b, const PairRows<D>& L,
+                                                     std::uint32_t r0, std::uint32_t r1, double h, Policy& pol,
+                                                     ContactBatch<D>& B) {
+  static_assert(!Policy::kSleepers && !Policy::kNear && !Policy::kVirial && !Policy::kOwners &&
+                !Policy::kSparseRows);
+  constexpr int S = ContactBatch<D>::S;
+  constexpr int C = ContactBatch<D>::kCap;
+  using CB = ContactBatch<D>;
+  const double hdt = 0.5 * h;
+  const std::uint32_t* const NB = L.nb;
+  const std::uint32_t* const OFF = L.off;
+  const std::uint8_t* const SH = L.sh;
+  std::uint8_t* const TOUCH = L.touch;
+  const Vec<D>* const SHIFT = L.shift;
+  double* const XI = Rot ? L.xi[0].data() : nullptr;
+  const bool onset_ok = pol.onset();
+  const SoftContact& c0 = pol.contact_main();
+  const SoftContact& c1 = pol.contact_alt();
+  const double kn0 = c0.kn, gn0 = c0.gn, kt0 = c0.kt, gt0 = c0.gt, mu0 = c0.mu;
+  const double kn1 = c1.kn, gn1 = c1.gn, kt1 = c1.kt, gt1 = c1.gt, mu1 = c1.mu;
+  const bool clip = c0.clip;  // the law's (one law per run: both sets share it)
+  const double* const V = b.v[0].data();
+  const double* const AC = b.acc[0].data();
+  const double* const WH = Rot ? b.w[0].data() : nullptr;
+  const double* const AL = Rot ? b.alpha[0].data() : nullptr;
+  const double* const RR = P.R;
+  Vec<D>* const FF = b.f;
+  Spin<D>* const TQ = b.tq;
+  double* const T = B.col.data();
+
+  // The walk's cursor (row i, entry e), the row being accumulated (cur, with fi and ti so far) and
+  // the first row whose row_done is still due.
+  constexpr std::uint32_t kNone = std::numeric_limits<std::uint32_t>::max();
+  std::uint32_t i = r0, e = r0 < r1 ? OFF[r0] : 0;
+  std::uint32_t cur = kNone, due = r0;
+  Vec<D> fi = Vec<D>::Zero();
+  Spin<D> ti = Spin<D>::Zero();
+  auto flush = [&] {
+    if (cur == kNone) return;
+    FF[cur] += fi;
+    if constexpr (Rot) TQ[cur] += ti;
+    cur = kNone;
+  };
+  while (i < r1) {
+    // 1. Compaction, up to C contacts.
+    int n = 0;
+    for (; i < r1; ++i) {
+      const Vec<D> xi = P.pos(i);
+      const double Ri = P.radius(i);
+      const std::uint32_t end = OFF[i + 1];
+      for (; e < end && n < C; ++e) {
+        const std::uint32_t j = NB[e];
+        Vec<D> dx = xi - P.pos(j);
+        if constexpr (Policy::kShifts) dx += SHIFT[SH[e]];
+        const double Rs = Ri + P.radius(j);
+        const double r2 = dx.squaredNorm();
+        // Written whether or not in contact (the slot is kept only if it is): no branch on the
+        // contact test, which a bed's lists make unpredictable.
+        const bool in = r2 < Rs * Rs;
+        const std::uint8_t was = TOUCH[e];
+        B.i[n] = i;
+        B.j[n] = j;
+        B.e[n] = e;
+        B.fresh[n] = was == 0;
+        for (int c = 0; c < D; ++c) T[(CB::kDx + c) * C + n] = dx[c];
+        T[CB::kRs * C + n] = Rs;
+        T[CB::kR2 * C + n] = r2;
+        B.alt[n] = pol.alt(i, j);
+        TOUCH[e] = in;
+        if (!in && was) {  // the contact has opened (rare: a predictable branch)
+          if constexpr (Rot)
+            for (int c = 0; c < D; ++c) XI[D * e + c] = 0.0;
+          pol.opened(i, j);
+        }
+        n += in;
+      }
+      if (e < end) break;  // the batch is full inside row i
+    }
+    // 2. The contact kernel, lane by lane: pair_rows's expressions on plain numbers.
+    {
+      const std::uint32_t* const BI = B.i.data();
+      const std::uint32_t* const BJ = B.j.data();
+      const std::uint32_t* const BE = B.e.data();
+      const std::uint8_t* const FR = B.fresh.data();
+      const std::uint8_t* const AT = B.alt.data();
+#pragma GCC ivdep
+      for (int k = 0; k < n; ++k) {
+        const std::uint32_t pi = BI[k], pj = BJ[k];
+        const double rr = std::sqrt(T[CB::kR2 * C + k]);
+        const double inv = 1.0 / rr;
+        double nv[D], vhi[D], vpi[D], vhj[D], vj[D], du[D];
+        for (int c = 0; c < D; ++c) {
+          nv[c] = T[(CB::kDx + c) * C + k] * inv;
+          vhi[c] = V[D * pi + c];
+          vpi[c] = vhi[c] + hdt * AC[D * pi + c];
+          vhj[c] = V[D * pj + c];
+          vj[c] = vhj[c] + hdt * AC[D * pj + c];
+          du[c] = vhi[c] - vhj[c];
+        }
+        const double delta = T[CB::kRs * C + k] - rr;
+        T[CB::kDelta * C + k] = delta;
+        const double onset = FR[k] && onset_ok ? onset_fraction(delta, -dot3<D>(du, nv), h) : -1.0;
+        const bool alt = AT[k] != 0;
+        const double kn = alt ? kn1 : kn0;
+        double gn = alt ? gn1 : gn0;
+        const double kt = alt ? kt1 : kt0;
+        double gt = alt ? gt1 : gt0;
+        const double mu = alt ? mu1 : mu0;
+        if constexpr (Law == NormalLaw::Linear) {  // at_onset: the dashpots' first-step weight
+          gn = onset >= 0.0 ? gn * (onset + 0.5) : gn;
+          gt = onset >= 0.0 ? gt * (onset + 0.5) : gt;
+        }
+        double F[D];
+        if constexpr (!Rot) {
+          double dv[D];
+          for (int q = 0; q < D; ++q) dv[q] = vpi[q] - vj[q];
+          double fn = normal_force_law<Law>(kn, gn, delta, dot3<D>(dv, nv));
+          fn = clip && fn < 0.0 ? 0.0 : fn;
+          for (int q = 0; q < D; ++q) F[q] = fn * nv[q];
+        } else {
+          const std::uint32_t pe = BE[k];
+          const double li = pair_lever_arm(RR[pi], delta), lj = pair_lever_arm(RR[pj], delta);
+          double whi[S], wpi[S], whj[S], wpj[S];
+          for (int q = 0; q < S; ++q) {
+            whi[q] = WH[S * pi + q];
+            wpi[q] = whi[q] + hdt * AL[S * pi + q];
+            whj[q] = WH[S * pj + q];
+            wpj[q] = whj[q] + hdt * AL[S * pj + q];
+          }
+          double cv[D], u[D], dxi[D], xi[D], Ft[D], m[S];
+          contact_velocity_to<D>(vpi, wpi, li, vj, wpj, lj, nv, cv);
+          contact_velocity_to<D>(vhi, whi, li, vhj, whj, lj, nv, u);
+          for (int q = 0; q < D; ++q) {
+            const double d = h * u[q];
+            dxi[q] = onset >= 0.0 ? d * onset : d;
+            xi[q] = XI[D * pe + q];
+          }
+          double fn, fraw;
+          bool sliding;
+          contact_force_core<D, Law>(kn, gn, kt, gt, mu, clip, delta, nv, cv, dxi, xi, F, Ft, fn, fraw, sliding);
+          for (int q = 0; q < D; ++q) XI[D * pe + q] = xi[q];
+          lever_moment_to<D>(nv, Ft, m);
+          for (int q = 0; q < S; ++q) {
+            T[(CB::kTi + q) * C + k] = li * m[q];
+            T[(CB::kTj + q) * C + k] = -lj * m[q];
+          }
+        }
+        for (int q = 0; q < D; ++q) T[(CB::kF + q) * C + k] = F[q];
+      }
+    }
+    // 3. Accumulation in list order.
+    for (int k = 0; k < n; ++k) {
+      const std::uint32_t pi = B.i[k], pj = B.j[k];
+      if (pi != cur) {
+        flush();
+        cur = pi;
+        fi.setZero();
+        ti.setZero();
+      }
+      if (B.fresh[k]) pol.began(pi, pj);
+      pol.overlap(T[CB::kDelta * C + k], T[CB::kRs * C + k]);
+      Vec<D> F;
+      for (int c = 0; c < D; ++c) F[c] = T[(CB::kF + c) * C + k];
+      fi += F;
+      Spin<D> tj = Spin<D>::Zero();
+      if constexpr (Rot) {
+        Spin<D> mi;
+        for (int q = 0; q < S; ++q) {
+          mi[q] = T[(CB::kTi + q) * C + k];
+          tj[q] = T[(CB::kTj + q) * C + k];
+        }
+        ti -= mi;
+      }
+      pol.partner(FF, TQ, pj, F, tj);
+    }
+    // Rows before the cursor's are done: their walls and integration.
+    if (cur != kNone && cur < i) flush();
+    for (; due < i; ++due) pol.row_done(due);
+  }
+  flush();
+  for (; due < r1; ++due) pol.row_done(due);
+}
+
+}  // namespace matep::soft

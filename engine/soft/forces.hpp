@@ -85,6 +85,18 @@ struct PairRows {
   }
 };
 
+// The hooks of pair_rows's policy that only the hybrid's extras use (sleepers, near flags), left
+// empty: a policy without them (TDM's) derives from this.
+struct NoSleepers {
+  void touching(std::uint32_t, std::uint32_t) {}
+  void near(std::uint32_t, std::uint32_t) {}
+  double near_skin() const { return 0.0; }
+  bool any_asleep() const { return false; }
+  bool asleep(std::uint32_t) const { return false; }
+  bool approached(double) const { return false; }
+  void wake(std::uint32_t) {}
+};
+
 // The rolling-resistance torque on i of one contact (rolling_torque) from the half-step spins
 // whi, whj, i's predicted spin wpi and j's angular acceleration alj (a wall: its spin and zero):
 // the relative rotation over the step h (h times the half-step relative spin, weighted by a new

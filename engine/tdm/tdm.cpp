@@ -732,7 +732,7 @@ void TdmEngine<D>::rebuild() {
 // walls follow its pairs and, with Fuse, its integration (its force is then complete).
 template <int D>
 template <bool Rot, bool Uniform, NormalLaw Law, bool Fuse, bool Roll>
-struct TdmEngine<D>::RangePolicy {
+struct TdmEngine<D>::RangePolicy : soft::NoSleepers {
   static constexpr bool kSleepers = false, kNear = false, kVirial = false, kOwners = false, kShifts = true,
                         kSparseRows = false;
   TdmEngine& eng;
@@ -763,13 +763,6 @@ struct TdmEngine<D>::RangePolicy {
     if (delta > acc.max_rel * Rs) acc.max_rel = delta / Rs;
     if (delta > acc.max_abs) acc.max_abs = delta;
   }
-  void touching(std::uint32_t, std::uint32_t) {}
-  void near(std::uint32_t, std::uint32_t) {}
-  double near_skin() const { return 0.0; }
-  bool any_asleep() const { return false; }
-  bool asleep(std::uint32_t) const { return false; }
-  bool approached(double) const { return false; }
-  void wake(std::uint32_t) {}
   [[gnu::always_inline]] void partner(Vec<D>* FF, Spin<D>* TQ, std::uint32_t j, const Vec<D>& f, const Spin<D>& t) {
     if (j >= lo && j < hi) {
       FF[j] -= f;

@@ -24,7 +24,7 @@ namespace {
 // A policy with everything TDM's has that matters here: constants by fixed flag, counters,
 // partner forces applied at once, and a record of each particle's force and torque at row_done.
 template <int D>
-struct Probe {
+struct Probe : soft::NoSleepers {
   static constexpr bool kSleepers = false, kNear = false, kVirial = false, kOwners = false, kShifts = true,
                         kSparseRows = false;
   const std::vector<std::uint8_t>& fixed;
@@ -52,13 +52,6 @@ struct Probe {
   void overlap(double delta, double Rs) {
     if (delta > max_rel * Rs) max_rel = delta / Rs;
   }
-  void touching(std::uint32_t, std::uint32_t) {}
-  void near(std::uint32_t, std::uint32_t) {}
-  double near_skin() const { return 0.0; }
-  bool any_asleep() const { return false; }
-  bool asleep(std::uint32_t) const { return false; }
-  bool approached(double) const { return false; }
-  void wake(std::uint32_t) {}
   void partner(Vec<D>* FF, Spin<D>* TQ, std::uint32_t j, const Vec<D>& F, const Spin<D>& t) {
     FF[j] -= F;
     TQ[j] += t;

@@ -624,10 +624,11 @@ template <int D, NormalLaw Law>
 //  4. if |F_t| > mu |F_n|: F_t <- mu |F_n| F_t/|F_t| (sliding), and the spring is rescaled so
 //     that it alone carries the cap, xi = -F_t/k_t (the dashpot does no work while sliding).
 // Law is the normal law known at compile time (the engine's hot loop); soft_contact_force()
-// below dispatches on c.normal at run time. The arithmetic is contact_force_core's: plain numbers
-// and no branches (every case computed, the result selected; each value by the same operations in
-// the same order as the case alone would take), so that a loop over many contacts runs lane-wise
-// (engine/soft/batch.hpp). Sums of products are taken left to right.
+// below dispatches on c.normal at run time. The arithmetic is contact_force_core's, on plain
+// numbers, with no early return and its rare cases (a spring to turn into the tangent plane, a
+// sliding contact) in blocks without side effects, so that a loop over many contacts runs lane-wise
+// (engine/soft/batch.hpp: the compiler turns the blocks into selects) while a one-contact call
+// still skips them. Sums of products are taken left to right.
 template <int D>
 [[gnu::always_inline]] inline double dot3(const double* a, const double* b) {
   double s = a[0] * b[0];

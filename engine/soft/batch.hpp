@@ -57,17 +57,19 @@ template <int D, NormalLaw Law, bool Rot, class Policy>
   const std::uint8_t* const SH = L.sh;
   std::uint8_t* const TOUCH = L.touch;
   const Vec<D>* const SHIFT = L.shift;
-  double* const XI = Rot ? L.xi[0].data() : nullptr;
+  // The arrays as plain numbers (an empty array, such as the springs of a run without pairs, is null).
+  auto raw = [](auto* p) { return p ? p->data() : nullptr; };
+  double* const XI = Rot ? raw(L.xi) : nullptr;
   const bool onset_ok = pol.onset();
   const SoftContact& c0 = pol.contact_main();
   const SoftContact& c1 = pol.contact_alt();
   const double kn0 = c0.kn, gn0 = c0.gn, kt0 = c0.kt, gt0 = c0.gt, mu0 = c0.mu;
   const double kn1 = c1.kn, gn1 = c1.gn, kt1 = c1.kt, gt1 = c1.gt, mu1 = c1.mu;
   const bool clip = c0.clip;  // the law's (one law per run: both sets share it)
-  const double* const V = b.v[0].data();
-  const double* const AC = b.acc[0].data();
-  const double* const WH = Rot ? b.w[0].data() : nullptr;
-  const double* const AL = Rot ? b.alpha[0].data() : nullptr;
+  const double* const V = raw(b.v);
+  const double* const AC = raw(b.acc);
+  const double* const WH = Rot ? raw(b.w) : nullptr;
+  const double* const AL = Rot ? raw(b.alpha) : nullptr;
   const double* const RR = P.R;
   Vec<D>* const FF = b.f;
   Spin<D>* const TQ = b.tq;

@@ -22,6 +22,7 @@
 #include "engine/hybrid/rest.hpp"
 #include "engine/hybrid/switching.hpp"
 #include "engine/renumber.hpp"
+#include "engine/soft/batch.hpp"
 #include "engine/soft/contact_rows.hpp"
 #include "engine/soft/forces.hpp"
 #include "engine/soft/pair_list.hpp"
@@ -1569,6 +1570,12 @@ class HybridEngine final : public edm::EdmCore<D, CalendarQueue, HybridEngine<D>
     bool mine(std::uint32_t k) const { return !OWN || OWN[k] == tid; }
     bool onset() const { return onset_ok; }
     const SoftContact& contact(std::uint32_t e, std::uint32_t, std::uint32_t, SoftContact&) const { return C[cidx[e]]; }
+    // The batched loop's constants (engine/soft/batch.hpp): each entry's in the table; one law.
+    static constexpr bool kTable = true;
+    const SoftContact* table() const { return C; }
+    std::uint32_t contact_index(std::uint32_t e) const { return cidx[e]; }
+    bool clip() const { return clip_law; }
+    bool clip_law = true;
     std::uint32_t* BEGUN = nullptr;  // contacts begun per particle since its last cost check
     void began(std::uint32_t i, std::uint32_t j) {
       ++begun;
@@ -1676,9 +1683,14 @@ class HybridEngine final : public edm::EdmCore<D, CalendarQueue, HybridEngine<D>
         spill_[th].clear();
         pol.spill = &spill_[th];
       }
-      soft::pair_rows<D, Law, Rot, Roll>(soft::Records<D, Hot<D>>{hot_.data()},
-                                         soft::bodies_of(vh_, acc_, f_, wh_, alpha_, tq_),
-                                         pairs_.as_rows(shifts_.data()), rlo_[th], rlo_[th + 1], h, pol);
+      pol.clip_law = ctab_.empty() || ctab_[0].clip;
+      const soft::Records<D, Hot<D>> pos{hot_.data()};
+      const auto bodies = soft::bodies_of(vh_, acc_, f_, wh_, alpha_, tq_);
+      const auto rows = pairs_.as_rows(shifts_.data());
+      if constexpr (!Roll)
+        soft::pair_rows_batched<D, Law, Rot>(pos, bodies, rows, rlo_[th], rlo_[th + 1], h, pol, batch_[th]);
+      else
+        soft::pair_rows<D, Law, Rot, Roll>(pos, bodies, rows, rlo_[th], rlo_[th + 1], h, pol);
       std::uint64_t b = pol.begun;
       const Spin<D> no_spin = Spin<D>::Zero();
       Spin<D> tq_none = Spin<D>::Zero();
@@ -1705,6 +1717,7 @@ class HybridEngine final : public edm::EdmCore<D, CalendarQueue, HybridEngine<D>
       begun[th] = b;
       vir[th] = pol.vir;
     };
+    if (batch_.size() < static_cast<std::size_t>(T)) batch_.resize(static_cast<std::size_t>(T));
     parallel(T, body);
     std::uint64_t b = 0;
     double v = 0.0;
@@ -2258,6 +2271,7 @@ class HybridEngine final : public edm::EdmCore<D, CalendarQueue, HybridEngine<D>
   int split_T_ = 0;                     // rlo_ and own_ are for this thread count ...
   std::uint64_t split_layout_ = ~std::uint64_t{0};  // ... and this layout of the rows
   std::vector<std::vector<Spill>> spill_;
+  std::vector<soft::ContactBatch<D>> batch_;  // each thread's scratch of the batched pair loop
   std::vector<WallLoads<D>> loads_t_;
   std::vector<std::vector<int>> t_relocate_, t_freed_;
   std::vector<std::vector<std::pair<int, int>>> t_leaving_;

@@ -754,6 +754,8 @@ struct TdmEngine<D>::RangePolicy : soft::NoSleepers {
     return scratch;
   }
   // The batched loop's uniform constants (engine/soft/batch.hpp).
+  static constexpr bool kTable = false;
+  bool clip() const { return eng.cpair_.clip; }
   bool alt(std::uint32_t i, std::uint32_t j) const { return eng.is_fixed(i) || eng.is_fixed(j); }
   const SoftContact& contact_main() const { return eng.cpair_; }
   const SoftContact& contact_alt() const { return eng.cfixed_; }

@@ -10,7 +10,9 @@
 
 #include <cstdint>
 #include <cstring>
+#include <algorithm>
 #include <random>
+#include <utility>
 #include <vector>
 
 #include "contact/soft.hpp"
@@ -40,7 +42,9 @@ struct Probe : soft::NoSleepers {
 
   Probe(const std::vector<std::uint8_t>& fx, const SoftContact& a, const SoftContact& b, bool ok)
       : fixed(fx), c0(a), c1(b), onset_ok(ok) {}
+  static constexpr bool kTable = false;
   bool onset() const { return onset_ok; }
+  bool clip() const { return c0.clip; }
   bool alt(std::uint32_t i, std::uint32_t j) const { return fixed[i] || fixed[j]; }
   const SoftContact& contact_main() const { return c0; }
   const SoftContact& contact_alt() const { return c1; }
@@ -226,6 +230,200 @@ TEST(SoftBatch, LinearFrictionlessSameAsOneContactLoop2D) { check_same<2, Normal
 // spring: no tangential force) and the sliding case side by side in one batch.
 TEST(SoftBatch, MixedFrictionlessAndSlidingSameAsOneContactLoop3D) {
   check_same<3, NormalLaw::Linear, true>(8, true, 0.4, 0.0);
+}
+
+// A policy with everything the hybrid's soft set has (engine/hybrid/hybrid.cpp SoftPolicy): rows
+// of owners (a particle's entries may lie in several rows), each entry's constants from a table,
+// near and touching flags, sleepers pushed by the springs only and woken when approached, a
+// particle's own force added per contact and spilled when another thread owns it, the partner's
+// likewise (a fixed partner gets nothing), and the virial.
+template <int D>
+struct HybridProbe {
+  static constexpr bool kSleepers = true, kNear = true, kVirial = true, kOwners = true, kShifts = true,
+                        kSparseRows = true, kTable = true;
+  const std::vector<SoftContact>& tab;
+  const std::vector<std::uint32_t>& cidx;
+  const std::vector<std::uint8_t>& fixed;
+  const std::vector<std::uint8_t>& asleep_;
+  const std::vector<std::uint8_t>& own;  // 1: this thread's particle
+  bool onset_ok = true;
+  double skin = 0.05;
+  std::vector<std::uint8_t> touching_f, near_f, lost_f;
+  std::vector<std::pair<std::uint32_t, Vec<D>>> spill_f;
+  std::vector<std::pair<std::uint32_t, Spin<D>>> spill_t;
+  std::uint64_t begun = 0;
+  double vir = 0.0;
+  bool fixed_j = false;
+
+  HybridProbe(const std::vector<SoftContact>& t, const std::vector<std::uint32_t>& ci, const std::vector<std::uint8_t>& fx,
+              const std::vector<std::uint8_t>& sl, const std::vector<std::uint8_t>& ow, bool ok)
+      : tab(t), cidx(ci), fixed(fx), asleep_(sl), own(ow), onset_ok(ok), touching_f(fx.size()), near_f(fx.size()),
+        lost_f(fx.size()) {}
+  bool onset() const { return onset_ok; }
+  bool clip() const { return tab[0].clip; }
+  const SoftContact* table() const { return tab.data(); }
+  std::uint32_t contact_index(std::uint32_t e) const { return cidx[e]; }
+  const SoftContact& contact(std::uint32_t e, std::uint32_t, std::uint32_t, SoftContact&) const { return tab[cidx[e]]; }
+  void began(std::uint32_t, std::uint32_t) { ++begun; }
+  void opened(std::uint32_t i, std::uint32_t j) {
+    if (asleep_[i]) lost_f[i] = 1;
+    if (asleep_[j]) lost_f[j] = 1;
+  }
+  void overlap(double, double) {}
+  std::uint64_t touching_n = 0, near_n = 0;
+  void touching(std::uint32_t i, std::uint32_t j) {
+    ++touching_n;
+    touching_f[i] = touching_f[j] = 1;
+  }
+  void near(std::uint32_t i, std::uint32_t j) {
+    ++near_n;
+    if (!fixed[j]) near_f[i] = near_f[j] = 1;
+  }
+  double near_skin() const { return skin; }
+  bool any_asleep() const { return true; }
+  bool asleep(std::uint32_t i) const { return asleep_[i] != 0; }
+  bool approached(double un) const { return un < -0.3; }
+  void wake(std::uint32_t k) { lost_f[k] = 1; }
+  void own_force(Vec<D>* FF, std::uint32_t i, const Vec<D>& f) {
+    if (own[i]) FF[i] += f;
+    else spill_f.push_back({i, f});
+  }
+  void own_torque(Spin<D>* TQ, std::uint32_t i, const Spin<D>& t) {
+    if (own[i]) TQ[i] += t;
+    else spill_t.push_back({i, t});
+  }
+  void partner(Vec<D>* FF, Spin<D>* TQ, std::uint32_t j, const Vec<D>& f, const Spin<D>& t) {
+    fixed_j = fixed[j] != 0;
+    if (fixed_j) return;
+    if (!own[j]) {
+      spill_f.push_back({j, Vec<D>(-f)});
+      spill_t.push_back({j, t});
+      return;
+    }
+    FF[j] -= f;
+    TQ[j] += t;
+  }
+  void virial(const Vec<D>& F, const Vec<D>& dx) {
+    if (!fixed_j) vir += F.dot(dx);
+  }
+  void row_done(std::uint32_t) {}
+};
+
+// The same pairs as make_scene's lists, in the hybrid's layout: rows in a shuffled order of owners,
+// the large grain's entries split over two rows far apart; entries' constants drawn from a table
+// of three; a fifth of the grains asleep and a third owned by another thread.
+template <int D, NormalLaw Law, bool Rot>
+void check_same_hybrid(unsigned seed, bool onset_ok, double mu) {
+  Scene<D> a = make_scene<D>(seed);
+  const std::size_t N = a.x.size();
+  std::mt19937_64 rng(seed + 100);
+  std::uniform_real_distribution<double> U(0.0, 1.0);
+  // Rows: (owner, entries) in a new order.
+  std::vector<std::pair<std::uint32_t, std::vector<std::uint32_t>>> rows;
+  for (std::uint32_t i = 0; i < N; ++i) {
+    std::vector<std::uint32_t> ents;
+    for (std::uint32_t e = a.off[i]; e < a.off[i + 1]; ++e) ents.push_back(e);
+    if (i == 0) {  // the large grain: two rows
+      const std::size_t half = ents.size() / 2;
+      rows.push_back({i, std::vector<std::uint32_t>(ents.begin(), ents.begin() + half)});
+      rows.push_back({i, std::vector<std::uint32_t>(ents.begin() + half, ents.end())});
+    } else {
+      rows.push_back({i, ents});
+    }
+  }
+  std::shuffle(rows.begin(), rows.end(), rng);
+  std::vector<std::uint32_t> owner, off{0}, nb, cidx;
+  std::vector<std::uint8_t> sh, touch;
+  std::vector<Vec<D>> xi;
+  for (const auto& [i, ents] : rows) {
+    owner.push_back(i);
+    for (const std::uint32_t e : ents) {
+      nb.push_back(a.nb[e]);
+      sh.push_back(a.sh[e]);
+      touch.push_back(a.touch[e]);
+      xi.push_back(a.xi[e]);
+      cidx.push_back(static_cast<std::uint32_t>(U(rng) * 3.0));
+    }
+    off.push_back(static_cast<std::uint32_t>(nb.size()));
+  }
+  std::vector<SoftContact> tab = {constants(Law, mu, 1.0), constants(Law, 0.0, 1.7), constants(Law, mu, 0.6)};
+  std::vector<std::uint8_t> asleep(N), own(N);
+  for (std::size_t i = 0; i < N; ++i) {
+    asleep[i] = U(rng) < 0.2;
+    own[i] = U(rng) < 0.67;
+  }
+  struct Out {
+    std::vector<Vec<D>> f, xi;
+    std::vector<Spin<D>> tq;
+    std::vector<std::uint8_t> touch;
+  };
+  const double h = 1e-4;
+  auto run = [&](bool batched, HybridProbe<D>& pol) {
+    Out o{a.f, xi, a.tq, touch};
+    const auto L = soft::PairRows<D>::of(owner.data(), off.data(), nb.data(), sh.data(), o.touch.data(), o.xi.data(),
+                                         a.shift.data());
+    const soft::Bodies<D> bodies = soft::bodies_of(a.v, a.acc, o.f, a.w, a.alpha, o.tq);
+    const soft::Arrays<D> pos{a.x.data(), a.R.data()};
+    const auto R = static_cast<std::uint32_t>(owner.size());
+    if (batched) {
+      soft::ContactBatch<D> batch;
+      soft::pair_rows_batched<D, Law, Rot>(pos, bodies, L, 0, R, h, pol, batch);
+    } else {
+      soft::pair_rows<D, Law, Rot, false>(pos, bodies, L, 0, R, h, pol);
+    }
+    return o;
+  };
+  HybridProbe<D> pa(tab, cidx, a.fixed, asleep, own, onset_ok), pb(tab, cidx, a.fixed, asleep, own, onset_ok);
+  const Out oa = run(false, pa), ob = run(true, pb);
+
+  // The scene exercises what it should: contacts begin, sleepers wake or lose a contact, grains
+  // are near without touching (more near calls than touching ones), forces spill.
+  EXPECT_GT(pa.begun, 10u);
+  std::size_t lost = 0;
+  for (std::size_t i = 0; i < N; ++i) lost += pa.lost_f[i];
+  EXPECT_GT(lost, 5u);
+  EXPECT_GT(pa.near_n, pa.touching_n + 10);
+  EXPECT_GT(pa.spill_f.size(), 100u);
+  EXPECT_NE(pa.vir, 0.0);
+  // Bit for bit.
+  EXPECT_EQ(pa.begun, pb.begun);
+  EXPECT_EQ(pa.touching_n, pb.touching_n);
+  EXPECT_EQ(pa.near_n, pb.near_n);
+  EXPECT_EQ(pa.touching_f, pb.touching_f);
+  EXPECT_EQ(pa.near_f, pb.near_f);
+  EXPECT_EQ(pa.lost_f, pb.lost_f);
+  EXPECT_EQ(std::memcmp(&pa.vir, &pb.vir, sizeof(double)), 0);
+  EXPECT_EQ(oa.touch, ob.touch);
+  ASSERT_EQ(pa.spill_f.size(), pb.spill_f.size());
+  ASSERT_EQ(pa.spill_t.size(), pb.spill_t.size());
+  std::size_t differ = 0;
+  for (std::size_t k = 0; k < pa.spill_f.size(); ++k)
+    differ += pa.spill_f[k].first != pb.spill_f[k].first ||
+              std::memcmp(pa.spill_f[k].second.data(), pb.spill_f[k].second.data(), sizeof(double) * D) != 0;
+  for (std::size_t k = 0; k < pa.spill_t.size(); ++k)
+    differ += pa.spill_t[k].first != pb.spill_t[k].first ||
+              std::memcmp(pa.spill_t[k].second.data(), pb.spill_t[k].second.data(),
+                          sizeof(double) * pa.spill_t[k].second.size()) != 0;
+  for (std::size_t i = 0; i < N; ++i) {
+    differ += std::memcmp(oa.f[i].data(), ob.f[i].data(), sizeof(double) * D) != 0;
+    if constexpr (Rot) differ += std::memcmp(oa.tq[i].data(), ob.tq[i].data(), sizeof(double) * oa.tq[i].size()) != 0;
+  }
+  for (std::size_t e = 0; e < oa.xi.size(); ++e)
+    differ += std::memcmp(oa.xi[e].data(), ob.xi[e].data(), sizeof(double) * D) != 0;
+  EXPECT_EQ(differ, 0u);
+}
+
+TEST(SoftBatch, HybridPolicyHertzWithFrictionSameAsOneContactLoop3D) {
+  check_same_hybrid<3, NormalLaw::Hertz, true>(21, true, 0.5);
+}
+TEST(SoftBatch, HybridPolicyLinearFrictionlessSameAsOneContactLoop3D) {
+  check_same_hybrid<3, NormalLaw::Linear, false>(22, true, 0.0);
+}
+TEST(SoftBatch, HybridPolicyLinearWithFrictionFirstEvaluation2D) {
+  check_same_hybrid<2, NormalLaw::Linear, true>(23, false, 0.4);
+}
+TEST(SoftBatch, HybridPolicyViscoelasticSameAsOneContactLoop2D) {
+  check_same_hybrid<2, NormalLaw::Viscoelastic, true>(24, true, 0.3);
 }
 
 // The plain-number kinematics of the batch equal the vector forms bit for bit.

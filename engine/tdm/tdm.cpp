@@ -125,6 +125,8 @@ class TdmEngine {
   // Half Verlet list in CSR form: entries off_[i] .. off_[i+1] hold j, the periodic image, the
   // touching flag and (with rotation) the tangential spring.
   std::vector<std::uint32_t> off_, nb_;
+  std::vector<std::vector<std::uint32_t>> nb_t_;  // each thread's rows at a list build, before they are joined
+  std::vector<std::vector<std::uint8_t>> sh_t_;
   std::vector<std::uint8_t> sh_, touch_;
   std::vector<Vec<D>> xi_;
   std::vector<Spin<D>> mr_;     // rolling spring torques per entry (Epsd rolling resistance; else empty)
@@ -618,74 +620,138 @@ void TdmEngine<D>::rebuild() {
 
   // 4. Half list: pairs within R_i + R_j + skin, each once: in the own cell j > i, and the
   // neighbour cells of larger index from the stencil built in setup(). Storage is sorted by cell,
-  // so j > i for every entry.
+  // so j > i for every entry. Each thread makes the rows of its range (set_ranges) into its own
+  // lists, which are then joined in range order: the same list as one thread makes.
   off_.assign(N_ + 1, 0);
-  nb_.clear();
-  sh_.clear();
-  if (grid_.hashed()) {
-    // Hashed cells: every cell around i (a bucket may also hold grains of far cells, which the
-    // distance test drops), partners j > i only: each pair once, in the row of its lower index.
-    for (std::uint32_t i = 0; i < N_; ++i) {
-      const Vec<D> xi = x_[i];
-      const double Ri = R_[i] + skin_;
-      grid_.around(grid_.coords(xi), [&](int l, const Vec<D>& shift) {
-        const std::uint8_t s = grid_.shift_index(shift);
-        const Vec<D> xs = xi + shifts_[s];
-        for (std::uint32_t j = cell_start_[l]; j < cell_start_[l + 1]; ++j) {
-          if (j <= i) continue;
-          const double cut = Ri + R_[j];
-          if ((xs - x_[j]).squaredNorm() < cut * cut) {
-            nb_.push_back(j);
-            sh_.push_back(s);
+  const bool hashed = grid_.hashed();
+  // Rows [i0, i1) appended to nb and sh; off_[i + 1] = the row's end within nb.
+  auto make_rows = [&](std::uint32_t i0, std::uint32_t i1, std::vector<std::uint32_t>& nb,
+                       std::vector<std::uint8_t>& sh) {
+    nb.clear();
+    sh.clear();
+    if (hashed) {
+      // Hashed cells: every cell around i (a bucket may also hold grains of far cells, which the
+      // distance test drops), partners j > i only: each pair once, in the row of its lower index.
+      for (std::uint32_t i = i0; i < i1; ++i) {
+        const Vec<D> xi = x_[i];
+        const double Ri = R_[i] + skin_;
+        grid_.around(grid_.coords(xi), [&](int l, const Vec<D>& shift) {
+          const std::uint8_t s = grid_.shift_index(shift);
+          const Vec<D> xs = xi + shifts_[s];
+          for (std::uint32_t j = cell_start_[l]; j < cell_start_[l + 1]; ++j) {
+            if (j <= i) continue;
+            const double cut = Ri + R_[j];
+            if ((xs - x_[j]).squaredNorm() < cut * cut) {
+              nb.push_back(j);
+              sh.push_back(s);
+            }
           }
-        }
-      });
-      off_[i + 1] = static_cast<std::uint32_t>(nb_.size());
-    }
-  }
-  for (std::size_t c = 0; c < (grid_.hashed() ? 0 : ncell); ++c) {
-    const std::uint32_t cb = cell_start_[c], ce = cell_start_[c + 1];
-    for (std::uint32_t i = cb; i < ce; ++i) {
-      const Vec<D> xi = x_[i];
-      const double Ri = R_[i] + skin_;
-      const bool fi = is_fixed(i);  // two fixed grains never meet: no entry
-      for (std::uint32_t j = i + 1; j < ce; ++j) {
-        if (fi && fixed_[j]) continue;
-        const double cut = Ri + R_[j];
-        const Vec<D> dx = xi - x_[j];
-        if (dx.squaredNorm() < cut * cut) {
-          nb_.push_back(j);
-          sh_.push_back(centre_shift_);
-        }
+        });
+        off_[i + 1] = static_cast<std::uint32_t>(nb.size());
       }
-      for (std::uint32_t k = st_off_[c]; k < st_off_[c + 1]; ++k) {
-        const std::uint32_t c2 = st_cell_[k];
-        const std::uint8_t s = st_shift_[k];
-        const Vec<D> xs = xi + shifts_[s];
-        for (std::uint32_t j = cell_start_[c2]; j < cell_start_[c2 + 1]; ++j) {
+      return;
+    }
+    if (i0 >= i1) return;
+    // The cell holding i0: the last whose start is <= i0.
+    std::size_t c = static_cast<std::size_t>(std::upper_bound(cell_start_.begin(), cell_start_.end(), i0) -
+                                             cell_start_.begin()) - 1;
+    for (; c < ncell && cell_start_[c] < i1; ++c) {
+      const std::uint32_t cb = cell_start_[c], ce = cell_start_[c + 1];
+      for (std::uint32_t i = std::max(cb, i0); i < std::min(ce, i1); ++i) {
+        const Vec<D> xi = x_[i];
+        const double Ri = R_[i] + skin_;
+        const bool fi = is_fixed(i);  // two fixed grains never meet: no entry
+        for (std::uint32_t j = i + 1; j < ce; ++j) {
           if (fi && fixed_[j]) continue;
           const double cut = Ri + R_[j];
-          if ((xs - x_[j]).squaredNorm() < cut * cut) {
-            nb_.push_back(j);
-            sh_.push_back(s);
+          const Vec<D> dx = xi - x_[j];
+          if (dx.squaredNorm() < cut * cut) {
+            nb.push_back(j);
+            sh.push_back(centre_shift_);
           }
         }
+        for (std::uint32_t k = st_off_[c]; k < st_off_[c + 1]; ++k) {
+          const std::uint32_t c2 = st_cell_[k];
+          const std::uint8_t s = st_shift_[k];
+          const Vec<D> xs = xi + shifts_[s];
+          for (std::uint32_t j = cell_start_[c2]; j < cell_start_[c2 + 1]; ++j) {
+            if (fi && fixed_[j]) continue;
+            const double cut = Ri + R_[j];
+            if ((xs - x_[j]).squaredNorm() < cut * cut) {
+              nb.push_back(j);
+              sh.push_back(s);
+            }
+          }
+        }
+        off_[i + 1] = static_cast<std::uint32_t>(nb.size());
       }
-      off_[i + 1] = static_cast<std::uint32_t>(nb_.size());
     }
-  }
-  // Recall touching flags and springs.
-  touch_.assign(nb_.size(), 0);
-  if (rot_) xi_.assign(nb_.size(), Vec<D>::Zero());
-  if (epsd_) mr_.assign(nb_.size(), Spin<D>::Zero());
-  Vec<D> spring;
-  if (!mem.empty())
-    for (std::size_t i = 0; i < N_; ++i)
+  };
+  // Touching flags and springs of entries [e0, e1) (rows [i0, i1)) recalled by particle ids.
+  auto recall = [&](std::uint32_t i0, std::uint32_t i1) {
+    const std::uint32_t e0 = off_[i0], e1 = off_[i1];
+    std::fill(touch_.begin() + e0, touch_.begin() + e1, std::uint8_t{0});
+    if (rot_) std::fill(xi_.begin() + e0, xi_.begin() + e1, Vec<D>::Zero());
+    if (epsd_) std::fill(mr_.begin() + e0, mr_.begin() + e1, Spin<D>::Zero());
+    if (mem.empty()) return;
+    Vec<D> spring;
+    for (std::uint32_t i = i0; i < i1; ++i)
       for (std::uint32_t e = off_[i]; e < off_[i + 1]; ++e)
         if (mem.recall_pair(id_[i], id_[nb_[e]], spring, epsd_ ? &mr_[e] : nullptr)) {
           touch_[e] = 1;
           if (rot_) xi_[e] = spring;
         }
+  };
+  auto size_entries = [&] {
+    touch_.resize(nb_.size());
+    if (rot_) xi_.resize(nb_.size());
+    if (epsd_) mr_.resize(nb_.size());
+  };
+  if (T_ == 1) {
+    make_rows(0, static_cast<std::uint32_t>(N_), nb_, sh_);
+    size_entries();
+    recall(0, static_cast<std::uint32_t>(N_));
+  } else {
+    if (nb_t_.size() < static_cast<std::size_t>(T_)) {
+      nb_t_.resize(T_);
+      sh_t_.resize(T_);
+    }
+    // (The first range's rows go straight into the joined list, which they begin.)
+#pragma omp parallel num_threads(T_)
+    {
+      const int t = omp_get_thread_num();
+      make_rows(lo_[t], hi_[t], t == 0 ? nb_ : nb_t_[t], t == 0 ? sh_ : sh_t_[t]);
+    }
+    // Each range's rows at their place in the joined list.
+    std::vector<std::uint32_t> base(static_cast<std::size_t>(T_) + 1, 0);
+    base[1] = static_cast<std::uint32_t>(nb_.size());
+    for (int t = 1; t < T_; ++t) base[t + 1] = base[t] + static_cast<std::uint32_t>(nb_t_[t].size());
+    nb_.resize(base[T_]);
+    sh_.resize(base[T_]);
+    size_entries();
+#pragma omp parallel num_threads(T_)
+    {
+      const int t = omp_get_thread_num();
+      if (t > 0) {
+        std::copy(nb_t_[t].begin(), nb_t_[t].end(), nb_.begin() + base[t]);
+        std::copy(sh_t_[t].begin(), sh_t_[t].end(), sh_.begin() + base[t]);
+        for (std::uint32_t i = lo_[t]; i < hi_[t]; ++i) off_[i + 1] += base[t];
+      }
+#pragma omp barrier
+      recall(lo_[t], hi_[t]);  // (reads off_[lo_[t]], the range before's)
+    }
+  }
+  Vec<D> spring;
+  // The force loop's ranges: equal shares of the list's entries (the rows above were split by
+  // particles), the pair work of a step being proportional to them.
+  if (T_ > 1) {
+    const std::size_t total = nb_.size();
+    for (int t = 1; t < T_; ++t) {
+      const std::uint32_t target = static_cast<std::uint32_t>(total * static_cast<std::size_t>(t) / T_);
+      const auto r = static_cast<std::uint32_t>(std::lower_bound(off_.begin(), off_.end(), target) - off_.begin());
+      hi_[t - 1] = lo_[t] = std::clamp(r, lo_[t - 1], static_cast<std::uint32_t>(N_));
+    }
+  }
 
   // 5. Wall list.
   wl_i_.clear();

@@ -9,6 +9,7 @@
 #include <array>
 #include <chrono>
 #include <csignal>
+#include <cstdlib>
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
@@ -81,12 +82,29 @@ inline std::string slurp(const std::filesystem::path& p) {
   return s.str();
 }
 
-// A fresh, empty folder under the system's temporary directory, unique to this process.
+// The folders fresh_dir made, removed when the test process exits (MATEP_KEEP_TEST_DIRS set: kept,
+// to look at what a failed test wrote).
+struct ScratchDirs {
+  std::vector<std::filesystem::path> dirs;
+  ~ScratchDirs() {
+    if (std::getenv("MATEP_KEEP_TEST_DIRS")) return;
+    std::error_code ec;
+    for (const auto& d : dirs) std::filesystem::remove_all(d, ec);
+  }
+};
+inline ScratchDirs& scratch_dirs() {
+  static ScratchDirs s;
+  return s;
+}
+
+// A fresh, empty folder under the system's temporary directory, unique to this process, removed
+// when the process exits.
 inline std::filesystem::path fresh_dir(const std::string& name) {
   const std::filesystem::path d =
       std::filesystem::temp_directory_path() / ("matep_test_" + name + "_" + std::to_string(::getpid()));
   std::filesystem::remove_all(d);
   std::filesystem::create_directories(d);
+  scratch_dirs().dirs.push_back(d);
   return d;
 }
 

@@ -11,6 +11,7 @@
 //    file (TDM sorts its storage in space at each list build; the hybrid renumbers the grains once,
 //    engine/renumber.hpp).
 // Usage: matep_bench_hybrid [--repeats N] [--only gas|pour|soft] [--threads T] [--steps S] [--shuffle] [--verbose]
+//        [--one tdm|hybrid] (with --only soft: one run of that method on --threads threads, for a profiler)
 #include <fmt/format.h>
 
 #include <algorithm>
@@ -85,7 +86,7 @@ temperature = 1.0
 // whole gas stays soft and melts into a dense soft fluid. Rates are soft particle-steps per second
 // of the whole run (list builds included), medians of alternated runs: TDM 1 thread, hybrid 1
 // thread, TDM T threads, hybrid T threads.
-void soft_set(int repeats, int threads, double steps, bool shuffle, bool verbose) {
+void soft_set(int repeats, int threads, double steps, bool shuffle, bool verbose, const std::string& one = {}) {
   const std::string text = lattice_gas_scene(1.0, 5, 32.0, 0.9, "contact = \"linear\"\nstiffness = 9.0e4",
                                               "[hybrid]\ncost_ratio = 1.0e9\nhysteresis = 1.0e9");
   const Scene scene = load_scene_string(text, "dense_soft_gas", "");
@@ -125,6 +126,11 @@ void soft_set(int repeats, int threads, double steps, bool shuffle, bool verbose
     if (verbose) fmt::print("  TDM {} threads: {:.3f} s, {} list builds\n", th, r.wall_seconds, r.soft.rebuilds);
     return static_cast<double>(r.soft.steps) * static_cast<double>(sys.x.size()) / r.wall_seconds;
   };
+  if (!one.empty()) {  // --one METHOD: a single run, for a profiler
+    const double r = one == "tdm" ? rate_t(threads) : rate_h(threads);
+    fmt::print("{} {} threads: {:.2f} M particle-steps/s\n", one, threads, r / 1e6);
+    return;
+  }
   std::vector<double> t1, h1, tT, hT;
   for (int k = 0; k < repeats; ++k) {
     t1.push_back(rate_t(1));
@@ -145,7 +151,7 @@ int main(int argc, char** argv) {
   int repeats = 3, threads = 2;
   bool verbose = false, shuffle = false;
   double steps = 400.0;
-  std::string only;
+  std::string only, one;
   for (int a = 1; a < argc; ++a) {
     if (!std::strcmp(argv[a], "--repeats") && a + 1 < argc) repeats = std::atoi(argv[++a]);
     else if (!std::strcmp(argv[a], "--only") && a + 1 < argc) only = argv[++a];
@@ -153,6 +159,7 @@ int main(int argc, char** argv) {
     else if (!std::strcmp(argv[a], "--steps") && a + 1 < argc) steps = std::atof(argv[++a]);
     else if (!std::strcmp(argv[a], "--verbose")) verbose = true;
     else if (!std::strcmp(argv[a], "--shuffle")) shuffle = true;
+    else if (!std::strcmp(argv[a], "--one") && a + 1 < argc) one = argv[++a];
   }
   const std::string src = MATEP_SOURCE_DIR;
   fmt::print("Hybrid against the pure methods, whole runs on one core, medians of {} alternated pairs.\n\n", repeats);
@@ -216,6 +223,6 @@ int main(int argc, char** argv) {
                scene.end_time, median(tt), median(th), median(ratio), switches, hh, ht, 100.0 * (hh / ht - 1.0),
                100.0 * ke_err);
   }
-  if (only.empty() || only == "soft") soft_set(repeats, threads, steps, shuffle, verbose);
+  if (only.empty() || only == "soft") soft_set(repeats, threads, steps, shuffle, verbose, one);
   return 0;
 }

@@ -35,6 +35,7 @@ struct HybridSettings {
   double dt = 0.0;          // TDM substep; 0 = the soft plan's default step
   double stability = 2.0;   // k: a collision within k t_c of the previous one turns the cluster soft
   int repeats = 3;          // ... when it is the repeats-th such collision in a row
+  double speed_fall = 100.0;  // ... and the impact speed has fallen by this factor since the first
   double lookahead = 20.0;  // L: a strongly inelastic collision soon after another whose outcome
                             // brings a grain back to its earlier partner within L t_c turns soft
                             // before it (engine/hybrid/hybrid.cpp lookahead_pair); 0 = off

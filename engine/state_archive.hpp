@@ -31,7 +31,8 @@ struct StateError : std::runtime_error {
 // resume, when set, is a state saved by the same engine for the same scene to continue from.
 struct CheckpointHooks {
   double interval = 0.0;  // 0: only at a stop request and at the end
-  std::function<void(double t, const std::vector<std::uint8_t>& state)> save;
+  // (state: the engine's bytes, which the hook may move away)
+  std::function<void(double t, std::vector<std::uint8_t>& state)> save;
   const std::vector<std::uint8_t>* resume = nullptr;
 };
 
@@ -53,6 +54,8 @@ class StateWriter {
  public:
   static constexpr bool loading = false;
   std::vector<std::uint8_t> bytes;
+  std::size_t size = 0;     // the bytes written (or counted)
+  bool count_only = false;  // count them, write nothing (archive_bytes' first pass)
 
   void tag(const char* name) {
     const std::uint32_t n = static_cast<std::uint32_t>(std::strlen(name));
@@ -94,10 +97,27 @@ class StateWriter {
 
  private:
   void raw(const void* p, std::size_t n) {
+    size += n;
+    if (count_only) return;
     const auto* b = static_cast<const std::uint8_t*>(p);
     bytes.insert(bytes.end(), b, b + n);
   }
 };
+
+// What archive(a) writes, in a buffer allocated once at its size (a first pass counts the bytes):
+// a buffer grown by doubling has each page of a large state faulted in two or three times (the
+// end checkpoint of a 10 000-disk hybrid run, 3.7 MB, took 40 ms of the run's 70, mostly page
+// faults of the copies).
+template <class F>
+std::vector<std::uint8_t> archive_bytes(F&& archive) {
+  StateWriter count;
+  count.count_only = true;
+  archive(count);
+  StateWriter w;
+  w.bytes.reserve(count.size);
+  archive(w);
+  return std::move(w.bytes);
+}
 
 class StateReader {
  public:

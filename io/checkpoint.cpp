@@ -3,6 +3,7 @@
 #include <fmt/format.h>
 
 #include <algorithm>
+#include <array>
 #include <cerrno>
 #include <cstring>
 #include <filesystem>
@@ -51,25 +52,24 @@ void Checkpoint::archive(A& a) {
   a(engine);
 }
 
-void write_checkpoint(const std::string& path, const Checkpoint& c) {
-  StateWriter body;
-  const_cast<Checkpoint&>(c).archive(body);
-  std::vector<std::uint8_t> out(kHead);
-  std::memcpy(out.data(), kCheckpointMagic, 8);
-  std::memcpy(out.data() + 8, &kCheckpointVersion, 4);
-  std::memcpy(out.data() + 12, &kByteOrder, 4);
-  const std::uint64_t n = body.bytes.size();
-  std::memcpy(out.data() + 16, &n, 8);
-  out.insert(out.end(), body.bytes.begin(), body.bytes.end());
-  const std::uint32_t crc = crc32c(out.data(), out.size(), 0);
-  const auto* cb = reinterpret_cast<const std::uint8_t*>(&crc);
-  out.insert(out.end(), cb, cb + 4);
-  // A temporary beside it, synced, then renamed: the checkpoint in place is always whole.
+void write_checkpoint(const std::string& path, const Checkpoint& c, bool durable) {
+  const std::vector<std::uint8_t> body = archive_bytes([&](auto& a) { const_cast<Checkpoint&>(c).archive(a); });
+  std::array<std::uint8_t, kHead> head{};
+  std::memcpy(head.data(), kCheckpointMagic, 8);
+  std::memcpy(head.data() + 8, &kCheckpointVersion, 4);
+  std::memcpy(head.data() + 12, &kByteOrder, 4);
+  const std::uint64_t n = body.size();
+  std::memcpy(head.data() + 16, &n, 8);
+  const std::uint32_t crc = crc32c(body.data(), body.size(), crc32c(head.data(), head.size(), 0));
+  // A temporary beside it, (synced,) then renamed: the checkpoint in place is always whole.
   const std::string tmp = path + ".tmp";
   {
     CheckedFile f(tmp, "wb");
-    f.write(out.data(), out.size());
-    f.sync();
+    f.write(head.data(), head.size());
+    f.write(body.data(), body.size());
+    f.write(&crc, sizeof crc);
+    if (durable) f.sync();
+    else f.flush();
     f.close();
   }
   std::error_code ec;

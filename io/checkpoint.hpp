@@ -20,7 +20,7 @@
 namespace matep {
 
 inline constexpr char kCheckpointMagic[8] = {'M', 'A', 'T', 'E', 'P', 'C', 'K', 'P'};
-inline constexpr std::uint32_t kCheckpointVersion = 5;  // 2: an EDM particle holds its collapse watch; 3: the hybrid's threads; 4: the switching rule's impact speeds; 5: the hybrid's grains in space order (engine/renumber.hpp)
+inline constexpr std::uint32_t kCheckpointVersion = 6;  // 2: an EDM particle holds its collapse watch; 3: the hybrid's threads; 4: the switching rule's impact speeds; 5: the hybrid's grains in space order (engine/renumber.hpp); 6: the impact speed at the start of each rapid run (hybrid.speed_fall)
 inline constexpr const char* kCheckpointName = "checkpoint.bin";
 
 struct Checkpoint {
@@ -38,8 +38,9 @@ struct Checkpoint {
   void archive(A& a);
 };
 
-// Writes `path` whole: a temporary beside it, flushed and synced, renamed onto it. Throws WriteError.
-void write_checkpoint(const std::string& path, const Checkpoint& c);
+// Writes `path` whole: a temporary beside it, flushed (and synced to the disk when `durable`),
+// renamed onto it. Throws WriteError.
+void write_checkpoint(const std::string& path, const Checkpoint& c, bool durable = true);
 // Reads and checks a checkpoint; throws IoError "PATH: ..." naming what is wrong (not a checkpoint,
 // another version or byte order, cut short, a checksum that does not match).
 Checkpoint read_checkpoint(const std::string& path);

@@ -1172,12 +1172,14 @@ Scene build_scene(toml::table& root, const std::string& file, const fs::path& ba
   // [hybrid]
   if (top.has("hybrid")) {
     const TableReader hy = top.sub("hybrid");
-    hy.allow({"stability", "repeats", "lookahead", "hysteresis", "skin", "cost_ratio", "rest_speed", "rest_time"});
+    hy.allow({"stability", "repeats", "speed_fall", "lookahead", "hysteresis", "skin", "cost_ratio", "rest_speed",
+              "rest_time"});
     // Read and checked whatever run.method is (so that --set run.method=tdm compares a hybrid
     // scene with the pure methods); used only by the hybrid engine.
     HybridSpec& h = scene.hybrid;
     h.stability = hy.number_opt("stability", kPositive);
     if (const auto r = hy.integer_opt("repeats", Range{1.0, 1000.0})) h.repeats = static_cast<int>(*r);
+    h.speed_fall = hy.number_opt("speed_fall", Range{1.0});
     h.lookahead = hy.number_opt("lookahead", kNonNegative);
     h.hysteresis = hy.number_opt("hysteresis", kPositive);
     h.skin = hy.number_opt("skin", kPositive);

@@ -395,9 +395,8 @@ class EdmCore {
   // Hands the state between two events to the run (nothing when it keeps no checkpoints).
   void save_checkpoint(double t) {
     if (!set_.checkpoint || !set_.checkpoint->save) return;
-    StateWriter w;
-    derived().archive(w);
-    set_.checkpoint->save(t, w.bytes);
+    std::vector<std::uint8_t> state = archive_bytes([&](auto& a) { derived().archive(a); });
+    set_.checkpoint->save(t, state);
   }
   struct QueueEntry {
     int id;

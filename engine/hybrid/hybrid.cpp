@@ -318,7 +318,7 @@ class HybridEngine final : public edm::EdmCore<D, CalendarQueue, HybridEngine<D>
     lookahead_ = hs.lookahead;
     hyst_ = hs.hysteresis > 0.0 ? hs.hysteresis : 10.0 * kstab_ * plan_.contact_time;
     rest_time_ = hs.rest_time > 0.0 ? hs.rest_time : 20.0 * plan_.contact_time;
-    switch_params_ = {kstab_, hs.repeats, hyst_, hs.cost_ratio * h_, kstab_ * plan_.contact_time};
+    switch_params_ = {kstab_, hs.repeats, hs.speed_fall, hyst_, hs.cost_ratio * h_, kstab_ * plan_.contact_time};
     sleeping_ = hs.rest_speed > 0.0;
     rest_speed2_ = hs.rest_speed * hs.rest_speed;
     rest_.rest_speed2 = rest_speed2_;

@@ -3,10 +3,15 @@
 //  * stability: the collision is the `repeats`-th in a row of a particle, each within k t_c of
 //    its previous one (t_c: the soft contact duration of this impact) and no longer after it than
 //    the one before (the intervals shrink, as in a bouncing sequence or a collapsing cluster),
-//    while the particle has collided within the hysteresis time. Rapid collisions whose intervals
-//    go up and down are a dense gas, which EDM resolves exactly: in the stability map's dense
-//    elastic and mildly inelastic gases (phi 0.3-0.5, e >= 0.3) the rule without the shrinking
-//    test turned grains soft where EDM runs to the end (charts/README.md, stability map);
+//    while the particle has collided within the hysteresis time, and the impact speed has fallen
+//    by the factor `fall` since the run's first collision (a collapse takes ever more of the
+//    relative speed: a bouncing sequence or a collapsing line loses a factor e at each collision;
+//    grains of a cluster of a cooling gas, touching gently in rapid runs of a few collisions that
+//    end by themselves, do not: README "Hybrid dynamics", cooling_clusters.toml). Rapid
+//    collisions whose intervals go up and down are a dense gas, which EDM resolves exactly: in
+//    the stability map's dense elastic and mildly inelastic gases (phi 0.3-0.5, e >= 0.3) the
+//    rule without the shrinking test turned grains soft where EDM runs to the end
+//    (charts/README.md, stability map);
 //  * cost: the smoothed interval between a particle's collisions is below cost_interval, the
 //    crossover where TDM substeps are cheaper. The average is the mean of the intervals so far,
 //    then, from the 8th on, an exponential average with weight 1/8, and it counts from the 4th
@@ -36,6 +41,7 @@ class SwitchRule {
   struct Params {
     double stability = 2.0;        // k
     int repeats = 3;
+    double fall = 1.0;             // the impact speed's fall over a run (1: any)
     double hysteresis = 0.0;       // collisions further apart than this reset the count
     double cost_interval = 0.0;    // cost_ratio x substep
     double cluster_window = 0.0;   // k x the plan's contact time
@@ -48,6 +54,7 @@ class SwitchRule {
     ema_.assign(n, kNever);
     prev_.assign(n, kNever);
     prevu_.assign(n, kNever);
+    u0_.assign(n, 0.0);
     seen_.assign(n, 0);
     recent_.assign(n, {-1, -1});
     recent_t_.assign(n, {-kNever, -kNever});
@@ -63,6 +70,7 @@ class SwitchRule {
     a(ema_);
     a(prev_);
     a(prevu_);
+    a(u0_);
     a(seen_);
     a(recent_);
     a(recent_t_);
@@ -144,12 +152,18 @@ class SwitchRule {
 
   // A rapid collision continues the run if its interval is within the window and neither its
   // interval nor its impact speed exceeds the previous collision's; within the window otherwise,
-  // it starts a new run.
+  // it starts a new run (from its impact speed u0_). The run is unstable from its repeats-th
+  // collision on, once the impact speed has fallen by `fall` from u0_.
   bool rapid(int i, double t, double last, double window, double u) {
     const double dt = t - last;
     if (dt < window) {
-      rapid_[i] = dt <= prev_[i] && u <= prevu_[i] ? rapid_[i] + 1 : 1;
-      return rapid_[i] >= p_.repeats;
+      if (dt <= prev_[i] && u <= prevu_[i] && rapid_[i] > 0) {
+        ++rapid_[i];
+      } else {
+        rapid_[i] = 1;
+        u0_[i] = u;
+      }
+      return rapid_[i] >= p_.repeats && u * p_.fall <= u0_[i];
     }
     rapid_[i] = 0;
     return false;
@@ -176,6 +190,7 @@ class SwitchRule {
   std::vector<double> ema_;
   std::vector<double> prev_;  // each particle's latest interval (-> the shrinking test)
   std::vector<double> prevu_;  // and the impact speed of its latest collision
+  std::vector<double> u0_;     // the impact speed of the first collision of its rapid run
   std::vector<int> seen_;     // intervals in ema_ (capped at kEmaSpan)
   std::vector<std::array<int, 2>> recent_;
   std::vector<std::array<double, 2>> recent_t_;

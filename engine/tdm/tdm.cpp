@@ -261,9 +261,8 @@ class TdmEngine {
   }
   void save_checkpoint() {
     if (!set_.checkpoint || !set_.checkpoint->save) return;
-    StateWriter w;
-    archive(w);
-    set_.checkpoint->save(step_time(steps_), w.bytes);
+    std::vector<std::uint8_t> state = archive_bytes([&](auto& a) { archive(a); });
+    set_.checkpoint->save(step_time(steps_), state);
   }
 };
 

@@ -273,6 +273,7 @@ TEST(HybridSwitch, OneClusterSoftAndBackConservesMomentumAndEnergy) {
   HybridSettings hs;
   hs.stability = 1e3;  // t_c = pi sqrt(m*/k) = 7e-3: a collision within 7 of the previous one
   hs.repeats = 1;
+  hs.speed_fall = 1.0;  // (a nearly elastic run never loses the default factor 100 of its speed)
   hs.hysteresis = 0.2;
   Recorder<3> rec;
   const RunResult<3> r = run_hybrid<3>(s, es, hs, {&rec});

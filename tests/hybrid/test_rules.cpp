@@ -194,6 +194,49 @@ TEST(SwitchRule, ARapidRunNeedsShrinkingImpactSpeedsToo) {
   EXPECT_EQ(w.rapid_count(0), 2);  // 0.95 > 0.9 started a new run at the second
 }
 
+// hybrid.speed_fall: a run is unstable only once its impact speed has fallen by the factor since
+// its first rapid collision. A bouncing sequence (each impact e = 0.5 times the one before, each
+// interval shorter) gets there at its 8th rapid collision (0.5^7 <= 1/100 < 0.5^6); a run of
+// gentle collisions in a cluster, which loses only 5 % of its speed each time, never does.
+TEST(SwitchRule, ARapidRunMustLoseTheFallOfItsImpactSpeed) {
+  SwitchRule::Params p;
+  p.stability = 2.0;
+  p.repeats = 3;
+  p.fall = 100.0;
+  p.hysteresis = 1.0;
+  p.cost_interval = 1e-9;  // (the cost rule out of the way)
+  p.cluster_window = 0.02;
+  for (const bool wall : {false, true}) {
+    SwitchRule r;
+    r.reset(2, p);
+    double t = 1.0, last = -kNever, dt = 0.018, u = 1.0;
+    auto hit = [&] { return wall ? r.wall(0, t, last, false, tc, u) : r.pair(0, 1, t, last, last, tc, u); };
+    EXPECT_EQ(hit(), Switch::Stay);  // the first collision: no interval
+    last = t;
+    for (int k = 1; k <= 8; ++k) {
+      t += dt;
+      u *= 0.5;
+      EXPECT_EQ(hit(), k < 8 ? Switch::Stay : Switch::Stability) << "wall " << wall << ", rapid collision " << k;
+      EXPECT_EQ(r.rapid_count(0), k);
+      last = t;
+      dt *= 0.9;
+    }
+    SwitchRule q;  // the gentle run: 30 rapid collisions with shrinking intervals, no switch
+    q.reset(2, p);
+    t = 1.0, last = -kNever, dt = 0.018, u = 1.0;
+    EXPECT_EQ(wall ? q.wall(0, t, last, false, tc, u) : q.pair(0, 1, t, last, last, tc, u), Switch::Stay);
+    last = t;
+    for (int k = 1; k <= 30; ++k) {
+      t += dt;
+      u *= 0.95;
+      EXPECT_EQ(wall ? q.wall(0, t, last, false, tc, u) : q.pair(0, 1, t, last, last, tc, u), Switch::Stay) << k;
+      last = t;
+      dt *= 0.97;
+    }
+    EXPECT_EQ(q.rapid_count(0), 30);  // a rapid run all along, only not a falling one
+  }
+}
+
 TEST(SwitchRule, AnElasticCollisionEndsARapidRun) {
   // The shrinking run of the test above completes at its third rapid collision when the
   // collisions dissipate; elastic ones (no energy lost: no collapse possible) never count, and

@@ -29,10 +29,12 @@ struct StateError : std::runtime_error {
 // How the engine hands its state to the run (io/) and takes one back. The engines call save at a
 // checkpoint moment (every interval, on a stop request, at the end) with the time and their state;
 // resume, when set, is a state saved by the same engine for the same scene to continue from.
+class StateWriter;
 struct CheckpointHooks {
   double interval = 0.0;  // 0: only at a stop request and at the end
-  // (state: the engine's bytes, which the hook may move away)
-  std::function<void(double t, std::vector<std::uint8_t>& state)> save;
+  // state(w) archives the engine's state into w (io/ streams it into the checkpoint file, with
+  // a counting pass for its length first; archive_bytes(state) gives the bytes)
+  std::function<void(double t, const std::function<void(StateWriter&)>& state)> save;
   const std::vector<std::uint8_t>* resume = nullptr;
 };
 
@@ -56,6 +58,8 @@ class StateWriter {
   std::vector<std::uint8_t> bytes;
   std::size_t size = 0;     // the bytes written (or counted)
   bool count_only = false;  // count them, write nothing (archive_bytes' first pass)
+  // When set, the bytes go to it as they come instead of into `bytes` (a file being written).
+  std::function<void(const void*, std::size_t)> sink;
 
   void tag(const char* name) {
     const std::uint32_t n = static_cast<std::uint32_t>(std::strlen(name));
@@ -99,9 +103,12 @@ class StateWriter {
   void raw(const void* p, std::size_t n) {
     size += n;
     if (count_only) return;
-    const auto* b = static_cast<const std::uint8_t*>(p);
-    bytes.insert(bytes.end(), b, b + n);
+    if (sink) return sink(p, n);
+    append(static_cast<const std::uint8_t*>(p), n);
   }
+  // (Out of line: inlined into a caller that writes into a fresh writer, GCC 12 warned of an
+  // overflow of the empty vector that the insert grows first, -Wstringop-overflow.)
+  [[gnu::noinline]] void append(const std::uint8_t* b, std::size_t n) { bytes.insert(bytes.end(), b, b + n); }
 };
 
 // What archive(a) writes, in a buffer allocated once at its size (a first pass counts the bytes):

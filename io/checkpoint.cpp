@@ -49,24 +49,48 @@ void Checkpoint::archive(A& a) {
     a(*snapshots);
   }
   a.tag("engine");
+  if constexpr (!A::loading) {
+    if (engine_source) {  // as a(engine) writes a byte vector: its length, then the bytes
+      StateWriter count;
+      count.count_only = true;
+      (*engine_source)(count);
+      const std::uint64_t n = count.size;
+      a(n);
+      const std::size_t before = a.size;
+      (*engine_source)(a);
+      if (a.size - before != n) throw StateError("the engine's state changed while it was archived");
+      return;
+    }
+  }
   a(engine);
 }
 
 void write_checkpoint(const std::string& path, const Checkpoint& c, bool durable) {
-  const std::vector<std::uint8_t> body = archive_bytes([&](auto& a) { const_cast<Checkpoint&>(c).archive(a); });
+  // The body is counted first (its length is in the head), then archived straight into the file
+  // with its checksum carried along: no copy of the engine's state is made here.
+  Checkpoint& cc = const_cast<Checkpoint&>(c);
+  StateWriter count;
+  count.count_only = true;
+  cc.archive(count);
   std::array<std::uint8_t, kHead> head{};
   std::memcpy(head.data(), kCheckpointMagic, 8);
   std::memcpy(head.data() + 8, &kCheckpointVersion, 4);
   std::memcpy(head.data() + 12, &kByteOrder, 4);
-  const std::uint64_t n = body.size();
+  const std::uint64_t n = count.size;
   std::memcpy(head.data() + 16, &n, 8);
-  const std::uint32_t crc = crc32c(body.data(), body.size(), crc32c(head.data(), head.size(), 0));
   // A temporary beside it, (synced,) then renamed: the checkpoint in place is always whole.
   const std::string tmp = path + ".tmp";
   {
     CheckedFile f(tmp, "wb");
+    std::uint32_t crc = crc32c(head.data(), head.size(), 0);
     f.write(head.data(), head.size());
-    f.write(body.data(), body.size());
+    StateWriter body;
+    body.sink = [&](const void* p, std::size_t k) {
+      crc = crc32c(p, k, crc);
+      f.write(p, k);
+    };
+    cc.archive(body);
+    if (body.size != n) throw WriteError(fmt::format("{}: the checkpoint's body changed while it was written", path));
     f.write(&crc, sizeof crc);
     if (durable) f.sync();
     else f.flush();

@@ -10,10 +10,12 @@
 #pragma once
 
 #include <cstdint>
+#include <functional>
 #include <optional>
 #include <string>
 #include <vector>
 
+#include "engine/state_archive.hpp"
 #include "io/checked_file.hpp"
 #include "io/output.hpp"
 
@@ -33,6 +35,9 @@ struct Checkpoint {
   std::optional<EventLogMark> events;
   std::optional<SnapshotSeriesMark> snapshots;
   std::vector<std::uint8_t> engine;
+  // Writing: when set, the engine's state comes from it instead of `engine` (the same bytes on
+  // the disk, streamed into the file without a copy in memory).
+  const std::function<void(StateWriter&)>* engine_source = nullptr;
 
   template <class A>
   void archive(A& a);

@@ -368,7 +368,7 @@ RunOutcome run_system(const Scene& scene, const System<D>& sys, const std::strin
   // into the staging folder (published with the set; a killed run's is kept as DIR.killed).
   CheckpointHooks hooks;
   hooks.interval = scene.output.checkpoint_interval;
-  hooks.save = [&](double t, std::vector<std::uint8_t>& state) {
+  hooks.save = [&](double t, const std::function<void(StateWriter&)>& state) {
     Checkpoint c;
     c.method = static_cast<std::uint32_t>(scene.method);
     c.dimension = D;
@@ -378,7 +378,7 @@ RunOutcome run_system(const Scene& scene, const System<D>& sys, const std::strin
     if (outflow) c.outflow = outflow->mark();
     if (log) c.events = log->mark();
     if (snaps) c.snapshots = snaps->mark();
-    c.engine = std::move(state);
+    c.engine_source = &state;
     // Synced to the disk only in a run that keeps checkpoints every interval: those are there to
     // survive a crash of the machine mid-run, each replacing the one before. Without an interval
     // the checkpoint is written once, at the end or at a signal, just before the run's folder is

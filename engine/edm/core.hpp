@@ -395,8 +395,7 @@ class EdmCore {
   // Hands the state between two events to the run (nothing when it keeps no checkpoints).
   void save_checkpoint(double t) {
     if (!set_.checkpoint || !set_.checkpoint->save) return;
-    std::vector<std::uint8_t> state = archive_bytes([&](auto& a) { derived().archive(a); });
-    set_.checkpoint->save(t, state);
+    set_.checkpoint->save(t, [&](StateWriter& w) { derived().archive(w); });
   }
   struct QueueEntry {
     int id;

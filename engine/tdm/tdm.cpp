@@ -261,8 +261,7 @@ class TdmEngine {
   }
   void save_checkpoint() {
     if (!set_.checkpoint || !set_.checkpoint->save) return;
-    std::vector<std::uint8_t> state = archive_bytes([&](auto& a) { archive(a); });
-    set_.checkpoint->save(step_time(steps_), state);
+    set_.checkpoint->save(step_time(steps_), [&](StateWriter& w) { archive(w); });
   }
 };
 

@@ -86,8 +86,8 @@ struct Keeper {
   CheckpointHooks hooks;
   Keeper(Trace<D>& trace, double interval) {
     hooks.interval = interval;
-    hooks.save = [this, &trace](double, const std::vector<std::uint8_t>& st) {
-      states.push_back(st);
+    hooks.save = [this, &trace](double, const auto& st) {
+      states.push_back(archive_bytes(st));
       trace.mark();
     };
   }
@@ -189,7 +189,7 @@ TEST(CheckpointEngines, AStateOfAnotherSystemIsRefused) {
   const System<3> b = lattice_gas<3>(5, 0.3, 1.0, 0.9, 1);
   std::vector<std::uint8_t> state;
   CheckpointHooks save;
-  save.save = [&](double, const std::vector<std::uint8_t>& s) { state = s; };
+  save.save = [&](double, const auto& st) { state = archive_bytes(st); };
   EdmSettings s = edm_set(0.5, 0.0);
   s.checkpoint = &save;
   run_edm<3>(a, s, QueueKind::Calendar);

@@ -153,7 +153,7 @@ TEST(EdmLists, ResumedFromACheckpointTheRunIsTheSameBitForBit) {
   std::vector<std::vector<std::uint8_t>> states;
   CheckpointHooks keep;
   keep.interval = 0.4;
-  keep.save = [&](double, const std::vector<std::uint8_t>& st) { states.push_back(st); };
+  keep.save = [&](double, const auto& st) { states.push_back(archive_bytes(st)); };
   EdmSettings s1 = s;
   s1.checkpoint = &keep;
   run_edm<3>(sys, s1, QueueKind::Calendar);

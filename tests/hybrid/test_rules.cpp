@@ -234,6 +234,19 @@ TEST(SwitchRule, ARapidRunMustLoseTheFallOfItsImpactSpeed) {
       dt *= 0.97;
     }
     EXPECT_EQ(q.rapid_count(0), 30);  // a rapid run all along, only not a falling one
+    SwitchRule z;  // a fall of 1 asked by the caller (a strongly inelastic impact): the 3rd
+    z.reset(2, p);
+    t = 1.0, last = -kNever, dt = 0.018, u = 1.0;
+    EXPECT_EQ(wall ? z.wall(0, t, last, false, tc, u) : z.pair(0, 1, t, last, last, tc, u), Switch::Stay);
+    last = t;
+    for (int k = 1; k <= 3; ++k) {
+      t += dt;
+      u *= 0.95;
+      const Switch v = wall ? z.wall(0, t, last, false, tc, u, true, 1.0) : z.pair(0, 1, t, last, last, tc, u, true, 1.0);
+      EXPECT_EQ(v, k < 3 ? Switch::Stay : Switch::Stability) << k;
+      last = t;
+      dt *= 0.97;
+    }
   }
 }
 

@@ -36,6 +36,7 @@ struct HybridSettings {
   double stability = 2.0;   // k: a collision within k t_c of the previous one turns the cluster soft
   int repeats = 3;          // ... when it is the repeats-th such collision in a row
   double speed_fall = 100.0;  // ... and the impact speed has fallen by this factor since the first
+                              // (not asked of a strongly inelastic impact, e <= 0.3)
   double lookahead = 20.0;  // L: a strongly inelastic collision soon after another whose outcome
                             // brings a grain back to its earlier partner within L t_c turns soft
                             // before it (engine/hybrid/hybrid.cpp lookahead_pair); 0 = off

@@ -519,7 +519,7 @@ std::string describe(const Scene& scene, const System<D>& sys) {
     if (scene.method == Method::Hybrid) {
       const HybridSettings h = hybrid_settings(scene);
       s += fmt::format("hybrid rule  soft when {} collisions in a row each follow the previous one within {} t_c and their\n"
-                       "             impact speed falls by {} over them, when a strongly inelastic one would send a grain\n"
+                       "             impact speed falls by {} over them (e > 0.3), when a strongly inelastic one would send a grain\n"
                        "             back to its earlier partner within {} t_c, or when a\n"
                        "             grain and its neighbours collide more often than once per {} substeps (cost); capture just before the touch (at least\n"
                        "             {} of the smallest diameter); release after {:.6g} s without contact{}\n",

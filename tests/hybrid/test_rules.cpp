@@ -4,6 +4,7 @@
 
 #include <cmath>
 #include <limits>
+#include <vector>
 
 #include "contact/vec.hpp"
 #include "engine/hybrid/cost.hpp"
@@ -206,47 +207,38 @@ TEST(SwitchRule, ARapidRunMustLoseTheFallOfItsImpactSpeed) {
   p.hysteresis = 1.0;
   p.cost_interval = 1e-9;  // (the cost rule out of the way)
   p.cluster_window = 0.02;
-  for (const bool wall : {false, true}) {
+  // A first collision at t = 1 with impact speed 1, then n rapid ones, the k-th ufac^k as fast
+  // and dt_k = 0.018 dtfac^(k - 1) after the one before (shrinking: each is rapid and continues
+  // the run); the rule's verdicts on those n (fall: the caller's, negative for the parameter's).
+  const auto series = [&](bool wall, int n, double ufac, double dtfac, double fall) {
     SwitchRule r;
     r.reset(2, p);
     double t = 1.0, last = -kNever, dt = 0.018, u = 1.0;
-    auto hit = [&] { return wall ? r.wall(0, t, last, false, tc, u) : r.pair(0, 1, t, last, last, tc, u); };
+    const auto hit = [&] {
+      return wall ? r.wall(0, t, last, false, tc, u, true, fall) : r.pair(0, 1, t, last, last, tc, u, true, fall);
+    };
     EXPECT_EQ(hit(), Switch::Stay);  // the first collision: no interval
     last = t;
-    for (int k = 1; k <= 8; ++k) {
+    std::vector<Switch> v;
+    for (int k = 1; k <= n; ++k) {
       t += dt;
-      u *= 0.5;
-      EXPECT_EQ(hit(), k < 8 ? Switch::Stay : Switch::Stability) << "wall " << wall << ", rapid collision " << k;
-      EXPECT_EQ(r.rapid_count(0), k);
+      u *= ufac;
+      v.push_back(hit());
+      EXPECT_EQ(r.rapid_count(0), k);  // a rapid run all along
       last = t;
-      dt *= 0.9;
+      dt *= dtfac;
     }
-    SwitchRule q;  // the gentle run: 30 rapid collisions with shrinking intervals, no switch
-    q.reset(2, p);
-    t = 1.0, last = -kNever, dt = 0.018, u = 1.0;
-    EXPECT_EQ(wall ? q.wall(0, t, last, false, tc, u) : q.pair(0, 1, t, last, last, tc, u), Switch::Stay);
-    last = t;
-    for (int k = 1; k <= 30; ++k) {
-      t += dt;
-      u *= 0.95;
-      EXPECT_EQ(wall ? q.wall(0, t, last, false, tc, u) : q.pair(0, 1, t, last, last, tc, u), Switch::Stay) << k;
-      last = t;
-      dt *= 0.97;
-    }
-    EXPECT_EQ(q.rapid_count(0), 30);  // a rapid run all along, only not a falling one
-    SwitchRule z;  // a fall of 1 asked by the caller (a strongly inelastic impact): the 3rd
-    z.reset(2, p);
-    t = 1.0, last = -kNever, dt = 0.018, u = 1.0;
-    EXPECT_EQ(wall ? z.wall(0, t, last, false, tc, u) : z.pair(0, 1, t, last, last, tc, u), Switch::Stay);
-    last = t;
-    for (int k = 1; k <= 3; ++k) {
-      t += dt;
-      u *= 0.95;
-      const Switch v = wall ? z.wall(0, t, last, false, tc, u, true, 1.0) : z.pair(0, 1, t, last, last, tc, u, true, 1.0);
-      EXPECT_EQ(v, k < 3 ? Switch::Stay : Switch::Stability) << k;
-      last = t;
-      dt *= 0.97;
-    }
+    return v;
+  };
+  for (const bool wall : {false, true}) {
+    const std::vector<Switch> bounce = series(wall, 8, 0.5, 0.9, -1.0);
+    for (int k = 1; k <= 8; ++k)
+      EXPECT_EQ(bounce[k - 1], k < 8 ? Switch::Stay : Switch::Stability) << "wall " << wall << ", collision " << k;
+    for (const Switch v : series(wall, 30, 0.95, 0.97, -1.0)) EXPECT_EQ(v, Switch::Stay) << "wall " << wall;
+    // A fall of 1 asked by the caller (a strongly inelastic impact): the 3rd switches.
+    const std::vector<Switch> any = series(wall, 3, 0.95, 0.97, 1.0);
+    EXPECT_EQ(any[1], Switch::Stay);
+    EXPECT_EQ(any[2], Switch::Stability) << "wall " << wall;
   }
 }
 

@@ -51,14 +51,9 @@ void Checkpoint::archive(A& a) {
   a.tag("engine");
   if constexpr (!A::loading) {
     if (engine_source) {  // as a(engine) writes a byte vector: its length, then the bytes
-      StateWriter count;
-      count.count_only = true;
-      (*engine_source)(count);
-      const std::uint64_t n = count.size;
-      a(n);
-      const std::size_t before = a.size;
-      (*engine_source)(a);
-      if (a.size - before != n) throw StateError("the engine's state changed while it was archived");
+      a(engine_bytes);
+      if (a.count_only) a.size += engine_bytes;  // (counted once by write_checkpoint)
+      else (*engine_source)(a);
       return;
     }
   }
@@ -69,6 +64,12 @@ void write_checkpoint(const std::string& path, const Checkpoint& c, bool durable
   // The body is counted first (its length is in the head), then archived straight into the file
   // with its checksum carried along: no copy of the engine's state is made here.
   Checkpoint& cc = const_cast<Checkpoint&>(c);
+  if (cc.engine_source) {
+    StateWriter engine;
+    engine.count_only = true;
+    (*cc.engine_source)(engine);
+    cc.engine_bytes = engine.size;
+  }
   StateWriter count;
   count.count_only = true;
   cc.archive(count);

@@ -38,6 +38,7 @@ struct Checkpoint {
   // Writing: when set, the engine's state comes from it instead of `engine` (the same bytes on
   // the disk, streamed into the file without a copy in memory).
   const std::function<void(StateWriter&)>* engine_source = nullptr;
+  std::uint64_t engine_bytes = 0;  // what engine_source writes (write_checkpoint counts it once)
 
   template <class A>
   void archive(A& a);

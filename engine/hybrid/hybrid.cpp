@@ -483,20 +483,22 @@ class HybridEngine final : public edm::EdmCore<D, CalendarQueue, HybridEngine<D>
     return soft_contact_time(*law, p, std::max(u, 1e-300));
   }
 
-  // Whether a collision of materials mi and mj at normal impact speed u loses energy: inelastic
-  // (restitution below 1 at u) or rough (friction takes energy from the sliding).
-  bool dissipates(int mi, int mj, double u) const {
-    return (!all_elastic_ && this->restitution(mi, mj, u) < 1.0) || (rough_ && rough_rules_.is_rough(mi, mj));
-  }
-
-  // The fall of the impact speed the stability rule asks of a rapid run (hybrid.speed_fall), for an
-  // impact of materials mi and mj at normal speed u: none (1) when the impact is strongly
-  // inelastic (e <= kLookaheadMaxE), where the hard resolution of a rapid sequence departs from
-  // the soft one within a few collisions (README, the lookahead rule): in the stability map's
-  // beds at e = 0.1 and 0.3 the fall asked there too delayed the switch, and the bed of e = 0.1,
-  // phi = 0.3 settled 1.3 % lower than the reference (4.9 floors; 0.6 % with the rule before).
-  double fall_for(int mi, int mj, double u) const {
-    return this->restitution(mi, mj, u) <= kLookaheadMaxE ? 1.0 : -1.0;
+  // What the switching rule needs of a collision of materials mi and mj at normal impact speed u
+  // (one restitution evaluated for both):
+  //  * dissipative: it loses energy, inelastic (restitution below 1 at u) or rough (friction
+  //    takes energy from the sliding);
+  //  * ask_fall: a rapid run must show the fall of its impact speed (hybrid.speed_fall), unless
+  //    the impact is strongly inelastic (e <= kLookaheadMaxE), where the hard resolution of a
+  //    rapid sequence departs from the soft one within a few collisions (README, the lookahead
+  //    rule): in the stability map's beds at e = 0.1 and 0.3 the fall asked there too delayed the
+  //    switch, and the bed of e = 0.1, phi = 0.3 settled 1.3 % lower than the reference (4.9
+  //    floors; 0.6 % with the rule before).
+  struct ImpactKind {
+    bool dissipative, ask_fall;
+  };
+  ImpactKind impact_kind(int mi, int mj, double u) const {
+    const double e = all_elastic_ ? 1.0 : this->restitution(mi, mj, u);
+    return {e < 1.0 || (rough_ && rough_rules_.is_rough(mi, mj)), e > kLookaheadMaxE};
   }
 
   // The switching rule (engine/hybrid/switching.hpp) at a pair collision of hard particles i and j,
@@ -513,8 +515,8 @@ class HybridEngine final : public edm::EdmCore<D, CalendarQueue, HybridEngine<D>
       return tc;
     };
     const double last_i = cold_[i].last, last_j = cold_[j].last;
-    Switch v = switch_.pair(i, j, t, last_i, last_j, contact_time, u, dissipates(cold_[i].mat, cold_[j].mat, u),
-                            fall_for(cold_[i].mat, cold_[j].mat, u));
+    const ImpactKind k = impact_kind(cold_[i].mat, cold_[j].mat, u);
+    Switch v = switch_.pair(i, j, t, last_i, last_j, contact_time, u, k.dissipative, k.ask_fall);
     if (v == Switch::Cost && !region_cheaper_soft(i, j, t)) v = Switch::Stay;
     if (v == Switch::Stay) return lookahead_pair(i, j, t, std::max(last_i, last_j), contact_time);
     const std::uint8_t reason = v == Switch::Stability ? kByStability : kByCost;
@@ -606,9 +608,9 @@ class HybridEngine final : public edm::EdmCore<D, CalendarQueue, HybridEngine<D>
     if (wall_checkpoint(i, wall, c)) return false;  // a checkpoint of the bracketing, not an impact
     const double un = (hot_[i].v - c.velocity).dot(c.normal);
     // Resting on the wall (no normal speed left) is the zero-time limit of a bouncing sequence.
+    const ImpactKind k = impact_kind(cold_[i].mat, sys_.walls[w].material, std::max(-un, 0.0));
     Switch v = switch_.wall(i, t, cold_[i].last, !(un < 0.0), [&] { return contact_time_of(i, -1, w, -un); },
-                            std::max(-un, 0.0), dissipates(cold_[i].mat, sys_.walls[w].material, std::max(-un, 0.0)),
-                            fall_for(cold_[i].mat, sys_.walls[w].material, std::max(-un, 0.0)));
+                            std::max(-un, 0.0), k.dissipative, k.ask_fall);
     if (v == Switch::Cost && !region_cheaper_soft(i, -1, t)) v = Switch::Stay;
     if (v == Switch::Stay) return false;
     make_pending(i, t, v == Switch::Stability ? kByStability : kByCost);
@@ -621,9 +623,9 @@ class HybridEngine final : public edm::EdmCore<D, CalendarQueue, HybridEngine<D>
     Vec<D> r = hot_[i].x - hot_[j].x;
     min_image(r);
     const double un = hot_[i].v.dot(r) / r.norm();
+    const ImpactKind k = impact_kind(cold_[i].mat, cold_[j].mat, std::max(-un, 0.0));
     Switch v = switch_.wall(i, t, cold_[i].last, !(un < 0.0), [&] { return contact_time_of(i, j, -1, -un); },
-                            std::max(-un, 0.0), dissipates(cold_[i].mat, cold_[j].mat, std::max(-un, 0.0)),
-                            fall_for(cold_[i].mat, cold_[j].mat, std::max(-un, 0.0)));
+                            std::max(-un, 0.0), k.dissipative, k.ask_fall);
     if (v == Switch::Cost && !region_cheaper_soft(i, -1, t)) v = Switch::Stay;
     if (v == Switch::Stay) return false;
     make_pending(i, t, v == Switch::Stability ? kByStability : kByCost);

@@ -81,17 +81,17 @@ class SwitchRule {
   // u: the impact's normal speed (0: not known; the run then goes by the intervals alone).
   // dissipative: the collision loses energy (false: elastic and smooth; it ends both runs).
   template <class Tc>
-  // fall: the fall this run must show (negative: the parameter's; the engine asks none of a
-  // strongly inelastic impact, whose rapid runs the lookahead's reasoning covers).
+  // ask_fall: the run must show the parameter's fall of the impact speed (the engine asks none of
+  // a strongly inelastic impact, whose rapid runs the lookahead's reasoning covers).
   Switch pair(int i, int j, double t, double last_i, double last_j, Tc&& contact_time, double u = 0.0,
-              bool dissipative = true, double fall = -1.0) {
+              bool dissipative = true, bool ask_fall = true) {
     const double since = t - (last_i > last_j ? last_i : last_j);
     bool stability = false;
     if (!dissipative) {
       rapid_[i] = rapid_[j] = 0;
     } else if (since < p_.hysteresis) {
       const double window = p_.stability * contact_time();
-      stability = rapid(i, t, last_i, window, u, fall) | rapid(j, t, last_j, window, u, fall);
+      stability = rapid(i, t, last_i, window, u, ask_fall) | rapid(j, t, last_j, window, u, ask_fall);
     }
     if (!(since < p_.hysteresis)) rapid_[i] = rapid_[j] = 0;
     note_interval(i, t, last_i, u);
@@ -106,11 +106,11 @@ class SwitchRule {
   // A wall collision of hard i at t (resting: no normal approach left).
   template <class Tc>
   Switch wall(int i, double t, double last_i, bool resting, Tc&& contact_time, double u = 0.0,
-              bool dissipative = true, double fall = -1.0) {
+              bool dissipative = true, bool ask_fall = true) {
     const double since = t - last_i;
     bool stability = resting;
     if (!dissipative && !resting) rapid_[i] = 0;
-    else if (!stability && since < p_.hysteresis) stability = rapid(i, t, last_i, p_.stability * contact_time(), u, fall);
+    else if (!stability && since < p_.hysteresis) stability = rapid(i, t, last_i, p_.stability * contact_time(), u, ask_fall);
     if (!(since < p_.hysteresis)) rapid_[i] = 0;
     note_interval(i, t, last_i, u);
     if (stability) return Switch::Stability;
@@ -155,8 +155,8 @@ class SwitchRule {
   // A rapid collision continues the run if its interval is within the window and neither its
   // interval nor its impact speed exceeds the previous collision's; within the window otherwise,
   // it starts a new run (from its impact speed u0_). The run is unstable from its repeats-th
-  // collision on, once the impact speed has fallen by `fall` from u0_.
-  bool rapid(int i, double t, double last, double window, double u, double fall) {
+  // collision on, once the impact speed has fallen by `fall` from u0_ (when asked).
+  bool rapid(int i, double t, double last, double window, double u, bool ask_fall) {
     const double dt = t - last;
     if (dt < window) {
       if (dt <= prev_[i] && u <= prevu_[i] && rapid_[i] > 0) {
@@ -165,7 +165,7 @@ class SwitchRule {
         rapid_[i] = 1;
         u0_[i] = u;
       }
-      return rapid_[i] >= p_.repeats && u * (fall < 0.0 ? p_.fall : fall) <= u0_[i];
+      return rapid_[i] >= p_.repeats && (!ask_fall || u * p_.fall <= u0_[i]);
     }
     rapid_[i] = 0;
     return false;

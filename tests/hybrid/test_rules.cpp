@@ -209,13 +209,14 @@ TEST(SwitchRule, ARapidRunMustLoseTheFallOfItsImpactSpeed) {
   p.cluster_window = 0.02;
   // A first collision at t = 1 with impact speed 1, then n rapid ones, the k-th ufac^k as fast
   // and dt_k = 0.018 dtfac^(k - 1) after the one before (shrinking: each is rapid and continues
-  // the run); the rule's verdicts on those n (fall: the caller's, negative for the parameter's).
-  const auto series = [&](bool wall, int n, double ufac, double dtfac, double fall) {
+  // the run); the rule's verdicts on those n (ask_fall: whether the caller asks the fall).
+  const auto series = [&](bool wall, int n, double ufac, double dtfac, bool ask_fall) {
     SwitchRule r;
     r.reset(2, p);
     double t = 1.0, last = -kNever, dt = 0.018, u = 1.0;
     const auto hit = [&] {
-      return wall ? r.wall(0, t, last, false, tc, u, true, fall) : r.pair(0, 1, t, last, last, tc, u, true, fall);
+      return wall ? r.wall(0, t, last, false, tc, u, true, ask_fall)
+                  : r.pair(0, 1, t, last, last, tc, u, true, ask_fall);
     };
     EXPECT_EQ(hit(), Switch::Stay);  // the first collision: no interval
     last = t;
@@ -231,12 +232,12 @@ TEST(SwitchRule, ARapidRunMustLoseTheFallOfItsImpactSpeed) {
     return v;
   };
   for (const bool wall : {false, true}) {
-    const std::vector<Switch> bounce = series(wall, 8, 0.5, 0.9, -1.0);
+    const std::vector<Switch> bounce = series(wall, 8, 0.5, 0.9, true);
     for (int k = 1; k <= 8; ++k)
       EXPECT_EQ(bounce[k - 1], k < 8 ? Switch::Stay : Switch::Stability) << "wall " << wall << ", collision " << k;
-    for (const Switch v : series(wall, 30, 0.95, 0.97, -1.0)) EXPECT_EQ(v, Switch::Stay) << "wall " << wall;
-    // A fall of 1 asked by the caller (a strongly inelastic impact): the 3rd switches.
-    const std::vector<Switch> any = series(wall, 3, 0.95, 0.97, 1.0);
+    for (const Switch v : series(wall, 30, 0.95, 0.97, true)) EXPECT_EQ(v, Switch::Stay) << "wall " << wall;
+    // No fall asked by the caller (a strongly inelastic impact): the 3rd switches.
+    const std::vector<Switch> any = series(wall, 3, 0.95, 0.97, false);
     EXPECT_EQ(any[1], Switch::Stay);
     EXPECT_EQ(any[2], Switch::Stability) << "wall " << wall;
   }

@@ -388,6 +388,8 @@ class HybridEngine final : public edm::EdmCore<D, CalendarQueue, HybridEngine<D>
     begun_n_.assign(N_, 0);
     rate_t0_.assign(N_, set_.start_time);
     cand_.assign(N_, 0);
+    region_seen_.assign(N_, 0u);
+    region_stamp_ = 0;
     gslot_.assign(N_, 0);
     joined_by_.assign(N_, kByOverlap);
     slot_.assign(N_, -1);
@@ -525,35 +527,62 @@ class HybridEngine final : public edm::EdmCore<D, CalendarQueue, HybridEngine<D>
     return true;
   }
 
-  // The cost rule over a region: a grain that turns soft draws its hard neighbours in after it
-  // (they are captured when they next come close), so the switch pays off only if the region
-  // collides faster than the crossover. Turning i (and j: -1 for none) soft costs one soft
-  // particle-step per substep for each of them and each hard neighbour of their first
-  // coordination shell (centres closer than 1.5 (R_i + R_k)), and saves those grains' collisions:
-  // soft is cheaper when their mean smoothed collision rate (SwitchRule::rate) exceeds the
-  // crossover 1 / (cost_ratio h). Grains already soft are paid for either way and not counted.
-  // A rattler in a dense gas, whose own interval is short while its cage's is not, stays hard:
-  // the single-grain test turned such grains soft, and each drew about a hundred others into the
-  // soft set by capture (charts/README.md, stability map).
+  // The cost rule over a region: a grain that turns soft draws hard grains in after it, so the
+  // switch pays off only if the grains it draws in collide faster than the crossover. Turning i (and
+  // j: -1 for none) soft costs one soft particle-step per substep for each grain of the region and
+  // saves the region's collisions: soft is cheaper when the region's mean smoothed collision rate
+  // (SwitchRule::rate) exceeds the crossover 1 / (cost_ratio h). The region is
+  //  * i, j and the hard grains of their first coordination shell (centres closer than
+  //    1.5 (R_i + R_k)), drawn in when they next come close;
+  //  * and, through the region, every hard grain within the capture distance of one in it
+  //    (capture_gap): captured at the first substep, and the grains within its capture distance
+  //    at the next, and so on.
+  // Grains already soft are paid for either way and not counted; the search stops at kMaxRegion
+  // grains (the mean is then the nearest grains'). A rattler in a dense gas, whose own interval
+  // is short while its cage's is not, stays hard: the single-grain test turned such grains soft,
+  // and each drew about a hundred others in by capture (charts/README.md, stability map); so did
+  // a region of nine grains of a cluster of cooling_clusters.toml rattling at 1.1 times the
+  // crossover, whose seventy-six neighbours within the capture distance (rates 0.3-9 per unit time,
+  // the crossover 820) joined at the next substep and held the soft set for 3 time units.
   bool region_cheaper_soft(int i, int j, double t) {
     region_.clear();
-    auto visit = [&](int c) {
+    if (++region_stamp_ == 0) {  // the stamps wrapped: clear them
+      std::fill(region_seen_.begin(), region_seen_.end(), 0u);
+      region_stamp_ = 1;
+    }
+    auto take = [&](int k) {
+      if (region_seen_[k] == region_stamp_) return;
+      region_seen_[k] = region_stamp_;
+      region_.push_back(k);
+    };
+    take(i);
+    if (j >= 0) take(j);
+    for (const int c : {i, j}) {
+      if (c < 0) continue;
       const Vec<D> xc = this->position_at(c, t);
       this->for_neighbours_reach(c, 1.5 * sg_w_, [&](int k, const Vec<D>& shift) {
-        if (mode_[k] != kHard || k == i || k == j) return;
+        if (mode_[k] != kHard) return;
         const double cut = 1.5 * (hot_[c].R + hot_[k].R);
-        if ((xc - this->position_at(k, t) - shift).squaredNorm() < cut * cut) region_.push_back(k);
+        if ((xc - this->position_at(k, t) - shift).squaredNorm() < cut * cut) take(k);
       });
-    };
-    visit(i);
-    if (j >= 0) visit(j);
-    std::sort(region_.begin(), region_.end());
-    region_.erase(std::unique(region_.begin(), region_.end()), region_.end());
-    double sum = switch_.rate(i) + (j >= 0 ? switch_.rate(j) : 0.0);
+    }
+    // The capture's chain through the region (breadth first: the nearest grains come first).
+    for (std::size_t q = 0; q < region_.size() && region_.size() < kMaxRegion; ++q) {
+      const int c = region_[q];
+      const Vec<D> xc = this->position_at(c, t);
+      const double vc = hot_[c].v.norm();
+      this->for_neighbours(c, [&](int k, const Vec<D>& shift) {
+        if (mode_[k] != kHard || region_seen_[k] == region_stamp_) return;
+        const Vec<D> xk = this->position_at(k, t);
+        const double cut = hot_[c].R + hot_[k].R + capture_gap(std::max(vc, hot_[k].v.norm()));
+        if ((xc - xk - shift).squaredNorm() < cut * cut) take(k);
+      });
+    }
+    double sum = 0.0;
     for (const int k : region_) sum += switch_.rate(k);
-    const double n = static_cast<double>(region_.size() + (j >= 0 ? 2 : 1));
-    return sum > n * switch_.crossover_rate();
+    return sum > static_cast<double>(region_.size()) * switch_.crossover_rate();
   }
+  static constexpr std::size_t kMaxRegion = 4096;
 
   // The lookahead of the stability rule (README "Hybrid dynamics"): a strongly inelastic collision
   // (e <= 0.3) of i and j that follows one of theirs within 5 L t_c (L = hybrid.lookahead) is
@@ -2218,7 +2247,9 @@ class HybridEngine final : public edm::EdmCore<D, CalendarQueue, HybridEngine<D>
   double iface_due_ = 0.0;                // the earliest iface_next_ of the list, or earlier (not saved:
                                           // 0 after a restore, one full scan)
   double vsoft_max_ = 0.0;                // fastest awake soft particle at the last substep
-  std::vector<int> region_;               // region_cheaper_soft's hard neighbours
+  std::vector<int> region_;               // region_cheaper_soft's region
+  std::vector<std::uint32_t> region_seen_;  // ... its members: region_stamp_ of the search
+  std::uint32_t region_stamp_ = 0;
   static constexpr double kMaxSkip = 64.0;
   bool uniform_ = false;              // one material and one radius: ctab_ = {pair, wall 0, wall 1, ...}
   std::vector<SoftContact> ctab_;

@@ -221,6 +221,60 @@ TEST(HybridSwitch, ADenseGasThatEdmRunsStaysMostlyHard) {
   ::testing::Test::RecordProperty("soft_share", fmt::format("{:.4f}", share));
 }
 
+// The cost rule prices what a switch draws in (HybridEngine::region_cheaper_soft). Sphere B
+// bounces elastically between two fixed spheres 0.001 d away on either side: every 0.002 time
+// units, 500 collisions per unit time, five times the crossover 1 / (cost_ratio h) = 100 (linear
+// law, k = m* (pi / t_c)^2 for the plan's t_c = 0.05 of a pair, m* = m / 2; h = t_c / 50). Sphere D rests on top of B, 5e-4 d away
+// (within the capture distance; never collides). Alone, B and D collide at 250 per unit time on
+// average: the switch pays off and B turns soft by cost. With a column of ten more resting
+// spheres on D, each 5e-4 d above the one below, the capture would draw the column in at the
+// first substep: twelve grains at 500 / 12 = 42 per unit time, cheaper hard, and B stays hard.
+// (In cooling_clusters.toml a switch of nine rapid grains drew 76 slow neighbours in this way and
+// held them soft for 3 time units.)
+RunResult<3> caged_rattler(int column) {
+  System<3> s;
+  s.lower = Vec<3>(0.0, 0.0, 0.0);
+  s.upper = Vec<3>(20.0, 20.0, 20.0);
+  s.periodic = {true, true, true};
+  Material m;
+  m.name = "elastic";
+  m.density = 1.0 / ball_volume<3>(0.5);
+  m.restitution = Restitution::constant(1.0);
+  m.contact = "linear";
+  const double tc = 0.05;  // the plan's contact time: a pair of unit masses, m* = 1 / 2
+  m.stiffness = 0.5 * std::pow(std::acos(-1.0) / tc, 2);
+  s.materials.push_back(m);
+  auto add = [&](double x, double y, double vx, bool fixed) {
+    s.x.push_back(Vec<3>(x, y, 10.0));
+    s.v.push_back(Vec<3>(vx, 0.0, 0.0));
+    s.radius.push_back(0.5);
+    s.material.push_back(0);
+    s.fixed.push_back(fixed ? 1 : 0);
+  };
+  add(10.0 - 1.001, 5.0, 0.0, true);
+  add(10.0 + 1.001, 5.0, 0.0, true);
+  add(10.0, 5.0, 1.0, false);  // B
+  for (int k = 0; k <= column; ++k) add(10.0, 5.0 + (k + 1) * 1.0005, 0.0, false);  // D and the column
+  EdmSettings es;
+  es.end_time = 0.5;
+  HybridSettings hs;
+  hs.threads = 1;
+  hs.cost_ratio = 10.0;
+  RunResult<3> r = run_hybrid<3>(s, es, hs);
+  EXPECT_EQ(r.status, "ok") << r.message;
+  EXPECT_NEAR(r.soft.dt, tc / 50.0, 1e-3 * tc / 50.0);
+  return r;
+}
+
+TEST(HybridSwitch, TheCostRulePricesTheGrainsASwitchWouldCapture) {
+  const RunResult<3> alone = caged_rattler(0);
+  EXPECT_GE(alone.hybrid.by_cost, 1u);
+  const RunResult<3> column = caged_rattler(10);
+  EXPECT_EQ(column.hybrid.by_cost, 0u);
+  EXPECT_EQ(column.hybrid.to_soft, 0u);
+  EXPECT_GT(column.counts.collisions(), 200u);  // about 250 collisions: the rule was asked each time
+}
+
 TEST(HybridSwitch, AnElasticDenseGasStaysHardAsInEdm) {
   // 512 elastic spheres at phi = 0.4: no collision loses energy, nothing can collapse, and EDM
   // gives the exact hard-sphere answer. Before the stability rule ignored elastic collisions this

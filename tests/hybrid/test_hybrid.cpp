@@ -697,10 +697,13 @@ TEST(HybridRest, PolydisperseBedSleepsAndMatchesTdm) {
   ASSERT_EQ(b.awake.status, "ok") << b.awake.message;
   ASSERT_EQ(b.tdm.status, "ok") << b.tdm.message;
   EXPECT_NEAR(b.Hs / b.Ha, 1.0, 0.01) << "rest rule " << b.Hs << " awake " << b.Ha;
-  // (The sanitizers' 200-grain bed scatters by 1.1 % from one realization to the next: seeds
-  // 11-17, rest rule / TDM 0.994-1.028, mean 1.009; 0.975-1.012 with the engine before the capture
-  // distance followed the speeds. It is held to 3 of those standard deviations.)
-  EXPECT_NEAR(b.Hs / b.Ht, 1.0, kSanitized ? 0.035 : 0.02) << "rest rule " << b.Hs << " tdm " << b.Ht;
+  // Against TDM, this frictional bed of 300 disks is one realization of a random packing: from the
+  // same start the two engines' grains part within the first collisions. Seeds 5-12, rest rule /
+  // TDM 0.975-1.013, mean 0.997, standard deviation 1.2 % (TDM's own height over those seeds
+  // 0.1457-0.1501, 1 %); with the cost rule before it priced the capture's chain, 0.991-1.015,
+  // mean 1.001. Held to 3 standard deviations
+  // (the sanitizers' 150-disk bed was held to the same before).
+  EXPECT_NEAR(b.Hs / b.Ht, 1.0, 0.035) << "rest rule " << b.Hs << " tdm " << b.Ht;
   expect_all_asleep<2>(b, s.size());
 }
 

@@ -130,6 +130,23 @@ TEST(HybridBall, ComesToRestAtTheZenoTimeAndTdmAgrees) {
 
 // ---- the switches ----------------------------------------------------------------------------
 
+// A periodic box [0, upper] with one material: elastic unit spheres (unit mass for radius 0.5),
+// linear law of the given stiffness, no grains yet.
+System<3> elastic_periodic_box(const Vec<3>& upper, double stiffness) {
+  System<3> s;
+  s.lower = Vec<3>(0.0, 0.0, 0.0);
+  s.upper = upper;
+  s.periodic = {true, true, true};
+  Material m;
+  m.name = "elastic";
+  m.density = 1.0 / ball_volume<3>(0.5);
+  m.restitution = Restitution::constant(1.0);
+  m.contact = "linear";
+  m.stiffness = stiffness;
+  s.materials.push_back(m);
+  return s;
+}
+
 // Three elastic spheres on a line, no gravity: A flies at B, B is pushed into C right away (C
 // sits just beyond B), so B's second collision follows its first within k t_c: the cluster turns
 // soft; once apart for the hysteresis it is released to EDM again.
@@ -140,17 +157,7 @@ TEST(HybridBall, ComesToRestAtTheZenoTimeAndTdmAgrees) {
 // single-grain release never frees one; the group release (its collisions are rare: cheaper as
 // events) returns all four to EDM together, and they fly on exactly as pure TDM's grains do.
 TEST(HybridSwitch, AGroupOfGrainsWithinEachOthersSkinReturnsHardTogether) {
-  System<3> s;
-  s.lower = Vec<3>(0.0, 0.0, 0.0);
-  s.upper = Vec<3>(40.0, 10.0, 10.0);
-  s.periodic = {true, true, true};
-  Material m;
-  m.name = "elastic";
-  m.density = 1.0 / ball_volume<3>(0.5);
-  m.restitution = Restitution::constant(1.0);
-  m.contact = "linear";
-  m.stiffness = 1e5;
-  s.materials.push_back(m);
+  System<3> s = elastic_periodic_box(Vec<3>(40.0, 10.0, 10.0), 1e5);
   const std::vector<double> xs = {10.0, 11.0 - 1e-6, 12.004 - 1e-6, 13.008 - 1e-6};
   for (const double x : xs) {
     s.x.push_back(Vec<3>(x, 5.0, 5.0));
@@ -232,18 +239,8 @@ TEST(HybridSwitch, ADenseGasThatEdmRunsStaysMostlyHard) {
 // (In cooling_clusters.toml a switch of nine rapid grains drew 76 slow neighbours in this way and
 // held them soft for 3 time units.)
 RunResult<3> caged_rattler(int column) {
-  System<3> s;
-  s.lower = Vec<3>(0.0, 0.0, 0.0);
-  s.upper = Vec<3>(20.0, 20.0, 20.0);
-  s.periodic = {true, true, true};
-  Material m;
-  m.name = "elastic";
-  m.density = 1.0 / ball_volume<3>(0.5);
-  m.restitution = Restitution::constant(1.0);
-  m.contact = "linear";
   const double tc = 0.05;  // the plan's contact time: a pair of unit masses, m* = 1 / 2
-  m.stiffness = 0.5 * std::pow(std::acos(-1.0) / tc, 2);
-  s.materials.push_back(m);
+  System<3> s = elastic_periodic_box(Vec<3>(20.0, 20.0, 20.0), 0.5 * std::pow(std::acos(-1.0) / tc, 2));
   auto add = [&](double x, double y, double vx, bool fixed) {
     s.x.push_back(Vec<3>(x, y, 10.0));
     s.v.push_back(Vec<3>(vx, 0.0, 0.0));

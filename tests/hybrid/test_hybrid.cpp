@@ -130,9 +130,9 @@ TEST(HybridBall, ComesToRestAtTheZenoTimeAndTdmAgrees) {
 
 // ---- the switches ----------------------------------------------------------------------------
 
-// A periodic box [0, upper] with one material: elastic unit spheres (unit mass for radius 0.5),
-// linear law of the given stiffness, no grains yet.
-System<3> elastic_periodic_box(const Vec<3>& upper, double stiffness) {
+// A periodic box [0, upper] with one material: unit spheres (unit mass for radius 0.5) of
+// constant restitution e, linear law of the given stiffness, no grains yet.
+System<3> periodic_unit_box(const Vec<3>& upper, double stiffness, double e = 1.0) {
   System<3> s;
   s.lower = Vec<3>(0.0, 0.0, 0.0);
   s.upper = upper;
@@ -140,7 +140,7 @@ System<3> elastic_periodic_box(const Vec<3>& upper, double stiffness) {
   Material m;
   m.name = "elastic";
   m.density = 1.0 / ball_volume<3>(0.5);
-  m.restitution = Restitution::constant(1.0);
+  m.restitution = Restitution::constant(e);
   m.contact = "linear";
   m.stiffness = stiffness;
   s.materials.push_back(m);
@@ -157,7 +157,7 @@ System<3> elastic_periodic_box(const Vec<3>& upper, double stiffness) {
 // single-grain release never frees one; the group release (its collisions are rare: cheaper as
 // events) returns all four to EDM together, and they fly on exactly as pure TDM's grains do.
 TEST(HybridSwitch, AGroupOfGrainsWithinEachOthersSkinReturnsHardTogether) {
-  System<3> s = elastic_periodic_box(Vec<3>(40.0, 10.0, 10.0), 1e5);
+  System<3> s = periodic_unit_box(Vec<3>(40.0, 10.0, 10.0), 1e5);
   const std::vector<double> xs = {10.0, 11.0 - 1e-6, 12.004 - 1e-6, 13.008 - 1e-6};
   for (const double x : xs) {
     s.x.push_back(Vec<3>(x, 5.0, 5.0));
@@ -240,7 +240,7 @@ TEST(HybridSwitch, ADenseGasThatEdmRunsStaysMostlyHard) {
 // held them soft for 3 time units.)
 RunResult<3> caged_rattler(int column) {
   const double tc = 0.05;  // the plan's contact time: a pair of unit masses, m* = 1 / 2
-  System<3> s = elastic_periodic_box(Vec<3>(20.0, 20.0, 20.0), 0.5 * std::pow(std::acos(-1.0) / tc, 2));
+  System<3> s = periodic_unit_box(Vec<3>(20.0, 20.0, 20.0), 0.5 * std::pow(std::acos(-1.0) / tc, 2));
   auto add = [&](double x, double y, double vx, bool fixed) {
     s.x.push_back(Vec<3>(x, y, 10.0));
     s.v.push_back(Vec<3>(vx, 0.0, 0.0));
@@ -290,19 +290,9 @@ TEST(HybridSwitch, AnElasticDenseGasStaysHardAsInEdm) {
 }
 
 TEST(HybridSwitch, OneClusterSoftAndBackConservesMomentumAndEnergy) {
-  System<3> s;
-  s.lower = Vec<3>(0.0, 0.0, 0.0);
-  s.upper = Vec<3>(40.0, 10.0, 10.0);
-  s.periodic = {true, true, true};
   // Nearly elastic: e = 0.9999 loses about 1e-4 of a collision's normal energy (an elastic
   // collision never counts for the stability rule: it cannot be part of a collapse).
-  Material m;
-  m.name = "elastic";
-  m.density = 1.0 / ball_volume<3>(0.5);
-  m.restitution = Restitution::constant(0.9999);
-  m.contact = "linear";
-  m.stiffness = 1e5;
-  s.materials.push_back(m);
+  System<3> s = periodic_unit_box(Vec<3>(40.0, 10.0, 10.0), 1e5, 0.9999);
   const double gap = 1e-4;
   const std::vector<Vec<3>> x = {Vec<3>(10.0, 5.0, 5.0), Vec<3>(12.0, 5.1, 5.0), Vec<3>(13.0 + gap, 5.25, 5.02)};
   const std::vector<Vec<3>> v = {Vec<3>(1.0, 0.02, -0.01), Vec<3>(0.0, 0.0, 0.0), Vec<3>(-0.1, 0.0, 0.03)};

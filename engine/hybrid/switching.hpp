@@ -80,9 +80,9 @@ class SwitchRule {
   // collisions (-infinity if none); contact_time(): t_c of this impact (called only when needed).
   // u: the impact's normal speed (0: not known; the run then goes by the intervals alone).
   // dissipative: the collision loses energy (false: elastic and smooth; it ends both runs).
-  template <class Tc>
   // ask_fall: the run must show the parameter's fall of the impact speed (the engine asks none of
   // a strongly inelastic impact, whose rapid runs the lookahead's reasoning covers).
+  template <class Tc>
   Switch pair(int i, int j, double t, double last_i, double last_j, Tc&& contact_time, double u = 0.0,
               bool dissipative = true, bool ask_fall = true) {
     const double since = t - (last_i > last_j ? last_i : last_j);

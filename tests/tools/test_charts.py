@@ -1,11 +1,12 @@
 #!/usr/bin/python3
-"""ctest for the chart tools: runs tools/bench_accuracy.py (its four cases) or tools/stability_map.py
-in --quick mode from the command line, as a user would, and checks the CSV behind each chart:
+"""ctest for the chart tools: runs tools/bench_accuracy.py (its four cases), tools/stability_map.py
+in --quick mode, or tools/collapse_chains.py on a few systems, from the command line, as a user
+would, and checks the CSV behind each chart:
 one row per method and setting (cell), finite wall time and error wherever a run was made, and
 rows marked "refused" only where the CLI really refuses (the hybrid method while it is not
 available, a TDM step above the stability limit). Also checks that each PNG was written.
 
-    /usr/bin/python3 tests/tools/test_charts.py accuracy|map --matep build/matep --work DIR
+    /usr/bin/python3 tests/tools/test_charts.py accuracy|map|chains --matep build/matep --work DIR
 """
 from __future__ import annotations
 
@@ -206,9 +207,33 @@ def check_pressure(matep, out, hybrid_refused):
     check_png(out / "accuracy_pressure.png")
 
 
+def check_chains(matep, out, hybrid_refused):
+    """tools/collapse_chains.py at r = 0.06 on the straight lines: a row per system, the reference
+    converged (TDM at h/10 against h/40 within 2 %), EDM's verdict against McNamara and Young's
+    threshold for three disks (r = 0.06 < 7 - 4 sqrt 3 = 0.0718: `collapse`), and the hybrid within
+    the collapse tests' 25 % on the three- and four-disk lines (tests/analytic/test_collapse.cpp)."""
+    if hybrid_refused:
+        print("chains: skipped (the hybrid is refused by this matep)")
+        return
+    run_tool([REPO / "tools/collapse_chains.py", "--matep", matep, "--out", out, "--r", "0.06", "--angles", "0"])
+    rows = read_csv(out / "collapse_chains.csv")
+    expect(sorted(r["system"] for r in rows) == ["3a", "3b", "4a", "4b", "5a", "5b"], f"chains: systems {rows}")
+    for r in rows:
+        where = f"chains: {r['system']}"
+        expect(num(r["ref_converged"]) < 0.02, f"{where}: TDM at h/10 and h/40 differ by {r['ref_converged']}")
+        for k in ("edm_err", "hybrid_err", "tdm_err", "edm_err_initial", "hybrid_err_initial"):
+            expect(math.isfinite(num(r[k])), f"{where}: {k} = {r[k]}")
+        if r["system"].startswith("3"):
+            expect(r["edm_status"] == "collapse", f"{where}: EDM {r['edm_status']} below the three-disk threshold")
+            expect(num(r["edm_err"]) > 0.9, f"{where}: EDM's collapsed state within {r['edm_err']} of the soft one")
+        if r["system"][0] in "34":
+            expect(num(r["hybrid_err"]) <= 0.25 and int(r["hybrid_switches"]) > 0,
+                   f"{where}: hybrid {r['hybrid_err']} off converged TDM ({r['hybrid_switches']} switches)")
+
+
 def main():
     ap = argparse.ArgumentParser()
-    ap.add_argument("which", choices=["accuracy", "map"])
+    ap.add_argument("which", choices=["accuracy", "map", "chains"])
     ap.add_argument("--matep", required=True)
     ap.add_argument("--work", required=True)
     args = ap.parse_args()
@@ -222,6 +247,8 @@ def main():
         check_accuracy(matep, out, hybrid_refused)
         check_pour(matep, out, hybrid_refused)
         check_pressure(matep, out, hybrid_refused)
+    elif args.which == "chains":
+        check_chains(matep, out, hybrid_refused)
     else:
         check_map(matep, out, hybrid_refused)
     if failures:

@@ -25,6 +25,7 @@ from __future__ import annotations
 
 import argparse
 import math
+import shutil
 import sys
 import tempfile
 from pathlib import Path
@@ -111,11 +112,22 @@ def main(argv=None) -> int:
     ap.add_argument("--out", default="charts/")
     ap.add_argument("--r", default="0.03,0.06,0.09,0.15,0.2,0.3,0.4")
     ap.add_argument("--angles", default="0,2,4,7,12")
+    ap.add_argument("--keep", action="store_true", help="keep the runs' folders (their path is printed)")
     args = ap.parse_args(argv)
     matep = Path(args.matep).resolve()
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
     work = Path(tempfile.mkdtemp(prefix="collapse_chains_"))
+    try:
+        return sweep(matep, out, work, args)
+    finally:
+        if args.keep:
+            print(f"runs kept in {work}")
+        else:
+            shutil.rmtree(work, ignore_errors=True)
+
+
+def sweep(matep: Path, out: Path, work: Path, args) -> int:
     rs = [float(x) for x in args.r.split(",")]
     angles = [float(x) for x in args.angles.split(",")]
     rows = []

@@ -24,6 +24,7 @@ writes collapse_chains.csv and prints a summary per restitution (about a minute)
 from __future__ import annotations
 
 import argparse
+import csv
 import math
 import shutil
 import sys
@@ -88,13 +89,9 @@ def relative_velocities(run) -> list[float] | None:
     p = Path(run.out_dir) / "final_state.csv"
     if run.summary is None or not p.exists():
         return None
-    rows = {}
-    with open(p) as f:
-        head = f.readline().strip().split(",")
-        for line in f:
-            c = dict(zip(head, line.strip().split(",")))
-            rows[int(c["id"])] = float(c["vx"])
-    v = [rows[k] for k in sorted(rows)]
+    with open(p, newline="") as f:
+        vx = {int(row["id"]): float(row["vx"]) for row in csv.DictReader(f)}
+    v = [vx[k] for k in sorted(vx)]
     return [v[k + 1] - v[k] for k in range(len(v) - 1)]
 
 

@@ -180,6 +180,20 @@ def check_map(matep, out, hybrid_refused):
                            f"{here}: ratio {hyb['ratio']} is not the hybrid's time over {min(best)}")
     check_png(out / "stability_map.png")
     check_png(out / "stability_map_ratio.png")
+    # A few cells with more seeds (--cells, --seeds): their own CSV, the map's left as it was.
+    before = (out / "stability_map.csv").read_bytes()
+    run_tool([REPO / "tools/stability_map.py", "--matep", matep, "--out", out, "--quick", "--gravity", "off",
+              "--cells", "0.3:0.1", "--seeds", "1"])
+    cells = read_csv(out / "stability_map_cells.csv")
+    expect({(num(r["e"]), num(r["phi"]), r["gravity"]) for r in cells} == {(0.3, 0.1, "0")},
+           f"--cells 0.3:0.1: rows for {sorted({(r['e'], r['phi'], r['gravity']) for r in cells})}")
+    expect(all(r["seeds"] == "1" for r in cells if r["method"] in ("edm", "hybrid")), "--seeds 1: seeds column")
+    expect((out / "stability_map.csv").read_bytes() == before, "--cells rewrote the map's CSV")
+    for bad, says in ((["--cells", "0.3"], "is not e:phi"), (["--cells", "1.5:0.1"], "needs 0 < e <= 1"),
+                      (["--seeds", "0"], "at least 1")):
+        p = subprocess.run(["/usr/bin/python3", str(REPO / "tools/stability_map.py"), "--out", str(out), *bad],
+                           capture_output=True, text=True, cwd=REPO)
+        expect(p.returncode == 2 and says in p.stderr, f"{bad}: exit {p.returncode}, {p.stderr.strip()[-120:]}")
 
 
 def check_pressure(matep, out, hybrid_refused):

@@ -417,11 +417,10 @@ def main(argv=None):
             only.add(cell)
         es = sorted({c[0] for c in only})
         phis = sorted({c[1] for c in only})
-    subtitle_seeds = seeds
     out = Path(args.out)
     csv_path = out / "stability_map.csv"
     png_path, ratio_path = out / "stability_map.png", out / "stability_map_ratio.png"
-    subtitle = f"{4 * n ** 3} spheres, fcc start, T0 = 1, linear k_n = 9e4, to t = {end:g}, {subtitle_seeds} seeds"
+    subtitle = f"{4 * n ** 3} spheres, fcc start, T0 = 1, linear k_n = 9e4, to t = {end:g}, {seeds} seeds"
     if args.plot_only:
         rows = read_rows(csv_path)
         for g in {r["gravity"] for r in rows}:

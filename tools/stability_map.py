@@ -186,12 +186,10 @@ def worst(outcomes):
 
 
 def sweep(matep, work: Path, es, phis, n, end, seeds, log, repeat=1, gravities=GRAVITY, only=None) -> list[dict]:
-    """only: a set of (e, phi) cells to run (None: every cell of es x phis)."""
+    """only: the (e, phi) cells of es x phis to run (None: every one)."""
     rows = []
     for gravity in gravities:
         for phi in phis:
-            if only is not None and not any(p == phi for _, p in only):
-                continue
             scenes = [write_scene(work, n, phi, s, gravity, end) for s in range(seeds)]
             for e in es:
                 if only is not None and (e, phi) not in only:

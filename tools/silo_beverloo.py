@@ -3,7 +3,8 @@
 
   tools/silo_beverloo.py [--matep build/matep] [--sizes 4,5,6,7,8] [--methods tdm,hybrid]
                          [--end 1.0] [--window 0.2,1.0] [--threads 1] [--out charts] [--plot-only]
-                         [--fill] [--friction MU --tag NAME]
+                         [--fill] [--friction MU --tag NAME] [--seed N]
+  tools/silo_beverloo.py --combine TAG,TAG,... [--out charts]
 
 Starts from the shipped bed (cases/silo_bed.csv, the bed cases/silo_fill.toml settles; --fill runs
 that scene again and starts from its final state; --friction MU sets the beads' and walls' friction
@@ -13,6 +14,14 @@ slope of the cumulative mass in outflow.csv against time over --window (the star
 excluded; the bin stays more than one diameter full), its uncertainty the spread of the slopes of
 the window's four quarters over sqrt(4). The rate of the window's first half against its second
 tests that W does not depend on the fill height (Janssen).
+
+Realizations: --seed N settles a new bed with the fill's run.seed = N (another random cloud, so
+another packing of the same statistics) and names the outputs silo_beverloo_seedN unless --tag
+says otherwise. --combine reads the CSVs of several realizations (their tags; "" is the shipped
+bed's silo_beverloo.csv) and states C and k over them: each realization's own fit, their mean
+and the standard error of the mean (the scatter between beds, which one run's error bars do not
+see), and the fit through each orifice's mean rate; it writes OUT/silo_beverloo_realizations.csv
+and .png.
 
 Beverloo (docs/references.md §7): W^(2/5) = (C rho_b sqrt(g))^(2/5) (D - k d) is a straight line in D;
 the least-squares line through the TDM points gives k from its intercept and C from its slope, with
@@ -131,6 +140,86 @@ def plot(rows, fit, png: Path, friction: float = 0.5):
     fig.savefig(png, dpi=110)
 
 
+def combine(out: Path, tags) -> int:
+    """C and k over realizations (one CSV each): their own fits, mean and standard error."""
+    reals = []
+    for tag in tags:
+        path = out / f"silo_beverloo{tag}.csv"
+        try:
+            with open(path) as f:
+                rows = [r for r in csv.DictReader(f) if r["method"] == "tdm"]
+        except OSError as e:
+            print(f"silo_beverloo.py: --combine: cannot read {path}: {e.strerror}", file=sys.stderr)
+            return 2
+        if not rows:
+            print(f"silo_beverloo.py: --combine: {path} holds no TDM rows", file=sys.stderr)
+            return 2
+        rho_b = float(rows[0]["rho_b"])
+        fit = beverloo(rows, rho_b)
+        if fit is None:
+            print(f"silo_beverloo.py: --combine: {path} has fewer than 3 orifice sizes", file=sys.stderr)
+            return 2
+        reals.append({"tag": tag, "rows": rows, "rho_b": rho_b, "fit": fit})
+    if len(reals) < 2:
+        print("silo_beverloo.py: --combine needs at least two realizations", file=sys.stderr)
+        return 2
+    n = len(reals)
+
+    def mean_se(xs):
+        m = sum(xs) / len(xs)
+        return m, statistics.stdev(xs) / math.sqrt(len(xs))
+
+    C, sC = mean_se([r["fit"]["C"] for r in reals])
+    k, sk = mean_se([r["fit"]["k"] for r in reals])
+    rho, srho = mean_se([r["rho_b"] for r in reals])
+    sizes = sorted(set.intersection(*({float(x["D_over_d"]) for x in r["rows"]} for r in reals)))
+    table, mean_rows = [], []
+    for s in sizes:
+        ws = [float(x["W"]) for r in reals for x in r["rows"] if float(x["D_over_d"]) == s]
+        m, se = mean_se(ws)
+        mean_rows.append({"method": "tdm", "D_over_d": s, "W": m})
+        table.append({"D_over_d": s, "W_mean": m, "W_se": se, "W_spread": statistics.stdev(ws) / m,
+                      **{f"W{r['tag'] or '_shipped'}": w for r, w in zip(reals, ws)}})
+    pooled = beverloo(mean_rows, rho)
+    for r in reals:
+        f = r["fit"]
+        print(f"realization {r['tag'] or '(shipped bed)'}: rho_b = {r['rho_b']:.1f} kg/m^3, C = {f['C']:.3f} +- "
+              f"{f['sC']:.3f}, k = {f['k']:.2f} +- {f['sk']:.2f}; residuals "
+              f"{', '.join(f'{100 * x:+.1f}%' for x in f['resid'])}")
+    for row in table:
+        print(f"D = {row['D_over_d']:g} d: W = {row['W_mean']:.4f} +- {row['W_se']:.4f} kg/s "
+              f"(spread between beds {100 * row['W_spread']:.1f} %)")
+    print(f"over {n} realizations: C = {C:.3f} +- {sC:.3f}, k = {k:.2f} +- {sk:.2f} (mean +- standard error); "
+          f"rho_b = {rho:.1f} +- {srho:.1f} kg/m^3")
+    if pooled:
+        print(f"fit through the mean rates: C = {pooled['C']:.3f}, k = {pooled['k']:.2f}; residuals "
+              f"{', '.join(f'{100 * x:+.1f}%' for x in pooled['resid'])}")
+    csv_path, png_path = out / "silo_beverloo_realizations.csv", out / "silo_beverloo_realizations.png"
+    fields = ["D_over_d", "W_mean", "W_se", "W_spread"] + [f"W{r['tag'] or '_shipped'}" for r in reals]
+    write_csv(csv_path, fields, table)
+    plt = import_pyplot()
+    fig, ax = plt.subplots(figsize=(6.5, 4.5))
+    for r, mk in zip(reals, "osd^v<>"):
+        pts = sorted((float(x["D_over_d"]), float(x["W"]) ** 0.4) for x in r["rows"])
+        f = r["fit"]
+        ax.plot([p[0] for p in pts], [p[1] for p in pts], mk, mfc="none",
+                label=f"bed {r['tag'] or '(shipped)'}: C = {f['C']:.3f}, k = {f['k']:.2f}")
+    if pooled:
+        x0, x1 = pooled["k"], max(sizes) + 0.5
+        ax.plot([x0, x1], [pooled["a"] * x * D_GRAIN + pooled["b"] for x in (x0, x1)], "k-", lw=0.8,
+                label=f"mean of {n} beds: C = {C:.3f} ± {sC:.3f}, k = {k:.2f} ± {sk:.2f}")
+    ax.set_xlim(left=0)
+    ax.set_ylim(bottom=0)
+    ax.set_xlabel("orifice diameter D / d")
+    ax.set_ylabel("W^(2/5)  (kg/s)^(2/5)")
+    ax.set_title(f"Silo discharge, {n} beds (realizations), TDM")
+    ax.legend(fontsize=8)
+    fig.tight_layout()
+    fig.savefig(png_path, dpi=110)
+    print(f"wrote {csv_path} and {png_path}")
+    return 0
+
+
 def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--matep", default=str(ROOT / "build" / "matep"))
@@ -145,12 +234,25 @@ def main() -> int:
     ap.add_argument("--friction", type=float, default=None,
                     help="the beads' (and walls') friction coefficient instead of the scenes' 0.5; settles a new bed")
     ap.add_argument("--tag", default="", help="suffix of the CSV and PNG names (silo_beverloo TAG .csv)")
+    ap.add_argument("--seed", type=int, default=None,
+                    help="settle a new bed with this run.seed (a realization); outputs tagged _seedN by default")
+    ap.add_argument("--combine", default=None,
+                    help="tags of realizations' CSVs to combine (comma-separated; an empty tag is the shipped bed's)")
     ap.add_argument("--plot-only", action="store_true")
     a = ap.parse_args()
     out = Path(a.out)
     out.mkdir(parents=True, exist_ok=True)
+    if a.combine is not None:
+        return combine(out, a.combine.split(","))
+    if a.seed is not None:
+        a.fill = True
+        if not a.tag:
+            a.tag = f"_seed{a.seed}"
+        if a.runs == ap.get_default("runs"):
+            a.runs = str(Path(a.runs) / f"seed{a.seed}")
     csv_path, png_path = out / f"silo_beverloo{a.tag}.csv", out / f"silo_beverloo{a.tag}.png"
     extra = {} if a.friction is None else {"material.glass.friction": a.friction}
+    fill_extra = dict(extra, **({} if a.seed is None else {"run.seed": a.seed}))
     if a.friction is not None:
         a.fill = True
     t0, t1 = (float(x) for x in a.window.split(","))
@@ -159,7 +261,7 @@ def main() -> int:
         bed = Path(a.runs) / "fill" / "final_state.csv"
     elif a.fill:
         fill = Path(a.runs) / "fill"
-        run = run_matep(a.matep, ROOT / "cases" / "silo_fill.toml", {"run.threads": a.threads, **extra}, fill)
+        run = run_matep(a.matep, ROOT / "cases" / "silo_fill.toml", {"run.threads": a.threads, **fill_extra}, fill)
         if run.status != "ok":
             print(f"silo fill: {run.status} {run.message}", file=sys.stderr)
             return 1

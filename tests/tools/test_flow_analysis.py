@@ -48,6 +48,54 @@ def test_beverloo():
         failures.append(f"Beverloo standard errors with 1 % noise: sC = {fit['sC']}, sk = {fit['sk']}")
 
 
+def test_beverloo_realizations():
+    # Three beds whose exact Beverloo rates have C = 0.55, 0.58, 0.61 and k = 1.4, 1.5, 1.6 (each bed
+    # its own rho_b): --combine must fit each bed back, give the mean C = 0.58, k = 1.5 and their
+    # standard errors (the sample standard deviation over sqrt 3: 0.03 / sqrt 3 and 0.1 / sqrt 3),
+    # write one row per orifice size, and refuse a missing CSV or a single realization (exit 2).
+    import contextlib
+    import csv
+    import io
+    d, g = silo_beverloo.D_GRAIN, silo_beverloo.G
+    beds = [("", 0.55, 1.4, 1450.0), ("_seed6", 0.58, 1.5, 1460.0), ("_seed7", 0.61, 1.6, 1470.0)]
+    sizes = [5.0, 6.0, 7.0, 8.0]
+    with tempfile.TemporaryDirectory() as tmp:
+        out = Path(tmp)
+        for tag, C, k, rho in beds:
+            with open(out / f"silo_beverloo{tag}.csv", "w", newline="") as f:
+                w = csv.DictWriter(f, fieldnames=["method", "D_over_d", "W", "rho_b"])
+                w.writeheader()
+                for s in sizes:
+                    w.writerow({"method": "tdm", "D_over_d": s, "W": C * rho * math.sqrt(g) * ((s - k) * d) ** 2.5,
+                                "rho_b": rho})
+                w.writerow({"method": "hybrid", "D_over_d": 6.0, "W": 1.0, "rho_b": rho})  # not fitted
+        text = io.StringIO()
+        with contextlib.redirect_stdout(text):
+            rc = silo_beverloo.combine(out, ["", "_seed6", "_seed7"])
+        if rc != 0:
+            failures.append(f"combine: exit {rc}")
+            return
+        printed = text.getvalue()
+        for want in ("C = 0.580 +- 0.017, k = 1.50 +- 0.06", "C = 0.550 +- 0.000, k = 1.40 +- 0.00"):
+            if want not in printed:
+                failures.append(f"combine: {want!r} not printed in:\n{printed}")
+        with open(out / "silo_beverloo_realizations.csv") as f:
+            rows = list(csv.DictReader(f))
+        if [float(r["D_over_d"]) for r in rows] != sizes:
+            failures.append(f"combine: sizes {[r['D_over_d'] for r in rows]}")
+        else:
+            mean6 = sum(C * rho * math.sqrt(g) * ((6.0 - k) * d) ** 2.5 for _, C, k, rho in beds) / 3
+            close(float(rows[1]["W_mean"]), mean6, 1e-5, "combine: mean W at 6 d")
+        err = io.StringIO()
+        with contextlib.redirect_stderr(err), contextlib.redirect_stdout(io.StringIO()):
+            missing = silo_beverloo.combine(out, ["", "_seed9"])
+            single = silo_beverloo.combine(out, ["_seed6"])
+        if missing != 2 or "silo_beverloo_seed9.csv" not in err.getvalue():
+            failures.append(f"combine with a missing CSV: exit {missing}, said {err.getvalue()!r}")
+        if single != 2 or "at least two" not in err.getvalue():
+            failures.append(f"combine with one realization: exit {single}, said {err.getvalue()!r}")
+
+
 def test_flow_rate():
     # A steady 0.25 kg/s outflow of 1 g grains: the slope of the cumulative mass is 0.25, and so
     # are both halves.
@@ -169,7 +217,7 @@ def test_heap_angle():
 
 
 def main():
-    for t in (test_beverloo, test_flow_rate, test_slab_area, test_bagnold_and_inertial_number, test_jop_fit,
+    for t in (test_beverloo, test_beverloo_realizations, test_flow_rate, test_slab_area, test_bagnold_and_inertial_number, test_jop_fit,
               test_column, test_heap_angle):
         t()
     if failures:

@@ -127,14 +127,22 @@ def plot(rows, fit, png: Path, friction: float = 0.5):
             ax.plot([p[0] for p in pts], [p[1] for p in pts], style, mfc="none" if method == "hybrid" else None,
                     label=method.upper() if method == "tdm" else "hybrid")
     if fit:
-        x0, x1 = fit["k"], max(p[0] for p in fit["pts"]) + 0.5
-        ax.plot([x0, x1], [fit["a"] * x * D_GRAIN + fit["b"] for x in (x0, x1)], "k-", lw=0.8,
-                label=f"Beverloo fit: C = {fit['C']:.3f} ± {fit['sC']:.3f}, k = {fit['k']:.2f} ± {fit['sk']:.2f}")
+        fit_line(ax, fit, f"Beverloo fit: C = {fit['C']:.3f} ± {fit['sC']:.3f}, k = {fit['k']:.2f} ± {fit['sk']:.2f}")
+    finish_plot(fig, ax, f"Silo discharge (cases/silo_discharge.toml), friction μ = {friction:g}", png)
+
+
+def fit_line(ax, fit, label):
+    """Beverloo's straight line in W^(2/5) from its intercept D = k d to beyond the largest orifice."""
+    x0, x1 = fit["k"], max(p[0] for p in fit["pts"]) + 0.5
+    ax.plot([x0, x1], [fit["a"] * x * D_GRAIN + fit["b"] for x in (x0, x1)], "k-", lw=0.8, label=label)
+
+
+def finish_plot(fig, ax, title, png: Path):
     ax.set_xlim(left=0)
     ax.set_ylim(bottom=0)
     ax.set_xlabel("orifice diameter D / d")
     ax.set_ylabel("W^(2/5)  (kg/s)^(2/5)")
-    ax.set_title(f"Silo discharge (cases/silo_discharge.toml), friction μ = {friction:g}")
+    ax.set_title(title)
     ax.legend(fontsize=8)
     fig.tight_layout()
     fig.savefig(png, dpi=110)
@@ -205,17 +213,8 @@ def combine(out: Path, tags) -> int:
         ax.plot([p[0] for p in pts], [p[1] for p in pts], mk, mfc="none",
                 label=f"bed {r['tag'] or '(shipped)'}: C = {f['C']:.3f}, k = {f['k']:.2f}")
     if pooled:
-        x0, x1 = pooled["k"], max(sizes) + 0.5
-        ax.plot([x0, x1], [pooled["a"] * x * D_GRAIN + pooled["b"] for x in (x0, x1)], "k-", lw=0.8,
-                label=f"mean of {n} beds: C = {C:.3f} ± {sC:.3f}, k = {k:.2f} ± {sk:.2f}")
-    ax.set_xlim(left=0)
-    ax.set_ylim(bottom=0)
-    ax.set_xlabel("orifice diameter D / d")
-    ax.set_ylabel("W^(2/5)  (kg/s)^(2/5)")
-    ax.set_title(f"Silo discharge, {n} beds (realizations), TDM")
-    ax.legend(fontsize=8)
-    fig.tight_layout()
-    fig.savefig(png_path, dpi=110)
+        fit_line(ax, pooled, f"mean of {n} beds: C = {C:.3f} ± {sC:.3f}, k = {k:.2f} ± {sk:.2f}")
+    finish_plot(fig, ax, f"Silo discharge, {n} beds (realizations), TDM", png_path)
     print(f"wrote {csv_path} and {png_path}")
     return 0
 

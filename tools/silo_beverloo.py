@@ -183,7 +183,7 @@ def combine(out: Path, tags) -> int:
     sizes = sorted(set.intersection(*({float(x["D_over_d"]) for x in r["rows"]} for r in reals)))
     table, mean_rows = [], []
     for s in sizes:
-        ws = [float(x["W"]) for r in reals for x in r["rows"] if float(x["D_over_d"]) == s]
+        ws = [next(float(x["W"]) for x in r["rows"] if float(x["D_over_d"]) == s) for r in reals]
         m, se = mean_se(ws)
         mean_rows.append({"method": "tdm", "D_over_d": s, "W": m})
         table.append({"D_over_d": s, "W_mean": m, "W_se": se, "W_spread": statistics.stdev(ws) / m,
@@ -213,7 +213,8 @@ def combine(out: Path, tags) -> int:
         ax.plot([p[0] for p in pts], [p[1] for p in pts], mk, mfc="none",
                 label=f"bed {r['tag'] or '(shipped)'}: C = {f['C']:.3f}, k = {f['k']:.2f}")
     if pooled:
-        fit_line(ax, pooled, f"mean of {n} beds: C = {C:.3f} ± {sC:.3f}, k = {k:.2f} ± {sk:.2f}")
+        fit_line(ax, pooled, f"fit through the mean rates: C = {pooled['C']:.3f}, k = {pooled['k']:.2f}\n"
+                             f"mean of the {n} beds' fits: C = {C:.3f} ± {sC:.3f}, k = {k:.2f} ± {sk:.2f}")
     finish_plot(fig, ax, f"Silo discharge, {n} beds (realizations), TDM", png_path)
     print(f"wrote {csv_path} and {png_path}")
     return 0

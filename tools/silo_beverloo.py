@@ -245,16 +245,14 @@ def main() -> int:
     if a.combine is not None:
         return combine(out, a.combine.split(","))
     if a.seed is not None:
-        a.fill = True
         if not a.tag:
             a.tag = f"_seed{a.seed}"
         if a.runs == ap.get_default("runs"):
             a.runs = str(Path(a.runs) / f"seed{a.seed}")
     csv_path, png_path = out / f"silo_beverloo{a.tag}.csv", out / f"silo_beverloo{a.tag}.png"
     extra = {} if a.friction is None else {"material.glass.friction": a.friction}
-    fill_extra = dict(extra, **({} if a.seed is None else {"run.seed": a.seed}))
-    if a.friction is not None:
-        a.fill = True
+    fill_extra = extra if a.seed is None else {**extra, "run.seed": a.seed}
+    a.fill = a.fill or a.friction is not None or a.seed is not None  # a new bed
     t0, t1 = (float(x) for x in a.window.split(","))
     bed = ROOT / "cases" / "silo_bed.csv"
     if a.fill and a.plot_only:

@@ -7,6 +7,9 @@ with known parameters, and must give those parameters back.
 """
 from __future__ import annotations
 
+import contextlib
+import csv
+import io
 import math
 import sys
 import tempfile
@@ -53,9 +56,6 @@ def test_beverloo_realizations():
     # its own rho_b): --combine must fit each bed back, give the mean C = 0.58, k = 1.5 and their
     # standard errors (the sample standard deviation over sqrt 3: 0.03 / sqrt 3 and 0.1 / sqrt 3),
     # write one row per orifice size, and refuse a missing CSV or a single realization (exit 2).
-    import contextlib
-    import csv
-    import io
     d, g = silo_beverloo.D_GRAIN, silo_beverloo.G
     beds = [("", 0.55, 1.4, 1450.0), ("_seed6", 0.58, 1.5, 1460.0), ("_seed7", 0.61, 1.6, 1470.0)]
     sizes = [5.0, 6.0, 7.0, 8.0]

@@ -5,8 +5,10 @@
 //
 //   matep_bench_edm                  full table (N = 4k, 32k, 256k, 1M; a few minutes)
 //   matep_bench_edm --quick          N = 4k and 32k only
-//   matep_bench_edm --one N RHO QUEUE COLLISIONS_PER_PARTICLE [SHELL]   one measurement (internal;
-//                    SHELL > 0: neighbour lists with shells of that size in diameters, else cells)
+//   matep_bench_edm --one N RHO QUEUE COLLISIONS_PER_PARTICLE [SHELL [ORDER]]   one measurement
+//                    (internal; SHELL > 0: neighbour lists with shells of that size in diameters,
+//                    else cells; ORDER: the particles' storage order, lattice (default), shuffled
+//                    or morton)
 #include <fmt/format.h>
 #include <sys/resource.h>
 #include <unistd.h>
@@ -18,6 +20,7 @@
 #include <cstdlib>
 #include <memory>
 #include <numbers>
+#include <numeric>
 #include <random>
 #include <string>
 #include <vector>
@@ -33,7 +36,7 @@ using bench::current_rss_kb;
 using bench::peak_rss_kb;
 
 // n_side^3 unit spheres on a simple cubic lattice at number density rho, T = 1.
-System<3> lattice(int n_side, double rho, std::uint64_t seed) {
+System<3> lattice(int n_side, double rho, std::uint64_t seed, const std::string& order) {
   System<3> s;
   const int N = n_side * n_side * n_side;
   const double L = std::cbrt(N / rho);
@@ -57,6 +60,29 @@ System<3> lattice(int n_side, double rho, std::uint64_t seed) {
   for (auto& v : s.v) v -= p / N;
   s.radius.assign(N, 0.5);
   s.material.assign(N, 0);
+  // The storage order (`order`): the lattice's rows (x fastest), a random permutation, or the
+  // Morton (Z) order of the lattice sites, whose neighbours in space lie nearest in memory.
+  if (order != "lattice") {
+    std::vector<std::uint32_t> perm(N);
+    std::iota(perm.begin(), perm.end(), 0u);
+    if (order == "shuffled") {
+      std::shuffle(perm.begin(), perm.end(), rng);
+    } else {  // "morton": the bits of the site's three indices interleaved
+      auto key = [&](std::uint32_t i) {
+        const std::uint32_t c[3] = {i % n_side, (i / n_side) % n_side, i / n_side / n_side};
+        std::uint64_t k = 0;
+        for (int b = 0; b < 21; ++b)
+          for (int d = 0; d < 3; ++d) k |= std::uint64_t((c[d] >> b) & 1u) << (3 * b + d);
+        return k;
+      };
+      std::sort(perm.begin(), perm.end(), [&](std::uint32_t a, std::uint32_t b) { return key(a) < key(b); });
+    }
+    const std::vector<Vec<3>> x = s.x, v = s.v;
+    for (int i = 0; i < N; ++i) {
+      s.x[i] = x[perm[i]];
+      s.v[i] = v[perm[i]];
+    }
+  }
   return s;
 }
 
@@ -69,9 +95,9 @@ struct Timer final : Observer<3> {
   }
 };
 
-int one(int n_side, double rho, const std::string& queue, double cpp, double shell) {
+int one(int n_side, double rho, const std::string& queue, double cpp, double shell, const std::string& order) {
   const long rss0 = current_rss_kb();
-  System<3> sys = lattice(n_side, rho, 1);
+  System<3> sys = lattice(n_side, rho, 1, order);
   const double N = static_cast<double>(sys.size());
   // Enskog-CS collision rate per particle at T = 1 (docs/references.md §2.1) sets the run length;
   // the first sample (after ~3 collisions per particle) ends the melting of the lattice.
@@ -127,8 +153,14 @@ Row measure(const std::string& self, int n_side, double rho, const std::string& 
 
 int main(int argc, char** argv) {
   std::vector<std::string> a(argv + 1, argv + argc);
-  if ((a.size() == 5 || a.size() == 6) && a[0] == "--one")
-    return one(std::stoi(a[1]), std::stod(a[2]), a[3], std::stod(a[4]), a.size() == 6 ? std::stod(a[5]) : 0.0);
+  if (a.size() >= 5 && a.size() <= 7 && a[0] == "--one") {
+    const std::string order = a.size() == 7 ? a[6] : "lattice";
+    if (order != "lattice" && order != "shuffled" && order != "morton") {
+      std::fprintf(stderr, "matep_bench_edm: ORDER must be lattice, shuffled or morton, not \"%s\"\n", order.c_str());
+      return 2;
+    }
+    return one(std::stoi(a[1]), std::stod(a[2]), a[3], std::stod(a[4]), a.size() >= 6 ? std::stod(a[5]) : 0.0, order);
+  }
   const bool quick = !a.empty() && a[0] == "--quick";
   const std::string self = "/proc/self/exe";
   char buf[4096];

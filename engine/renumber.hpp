@@ -64,6 +64,17 @@ std::vector<std::uint32_t> spatial_order(const System<D>& s) {
     }
     key[i] = c;
   }
+  // By key, ids in order within a key: a counting sort when the cells are few against the grains
+  // (a scene's box), else the comparison sort (a mostly empty domain), the same order either way.
+  std::uint64_t cells = 1;
+  for (int k = 0; k < D && cells <= 4 * n; ++k) cells *= count[k];
+  if (cells <= 4 * n) {
+    std::vector<std::uint32_t> start(cells + 1, 0u);
+    for (std::size_t i = 0; i < n; ++i) ++start[key[i] + 1];
+    for (std::uint64_t c = 0; c < cells; ++c) start[c + 1] += start[c];
+    for (std::size_t i = 0; i < n; ++i) order[start[key[i]]++] = static_cast<std::uint32_t>(i);
+    return order;
+  }
   std::stable_sort(order.begin(), order.end(), [&](std::uint32_t a, std::uint32_t b) { return key[a] < key[b]; });
   return order;
 }
@@ -98,9 +109,24 @@ void rows_to_user(State& s, const IdMap& m) {
   const std::size_t rows = s.x.size();
   std::vector<std::uint64_t> uid(rows);
   for (std::size_t r = 0; r < rows; ++r) uid[r] = m.user(s.id.empty() ? r : s.id[r]);
+  // The rows by scene id (the ids are distinct): placed by id when they are dense (at most twice as
+  // many id values as rows: a run's grains, some removed or inserted), else sorted.
   std::vector<std::size_t> p(rows);
-  std::iota(p.begin(), p.end(), std::size_t{0});
-  std::sort(p.begin(), p.end(), [&](std::size_t a, std::size_t b) { return uid[a] < uid[b]; });
+  std::uint64_t top = 0;
+  for (const std::uint64_t u : uid) top = std::max(top, u);
+  bool placed = false;
+  if (top < 2 * static_cast<std::uint64_t>(rows)) {
+    std::vector<std::size_t> at(static_cast<std::size_t>(top) + 1, rows);
+    for (std::size_t r = 0; r < rows; ++r) at[uid[r]] = r;
+    std::size_t k = 0;
+    for (const std::size_t r : at)
+      if (r < rows) p[k++] = r;
+    placed = k == rows;  // (not when an id repeats)
+  }
+  if (!placed) {
+    std::iota(p.begin(), p.end(), std::size_t{0});
+    std::sort(p.begin(), p.end(), [&](std::size_t a, std::size_t b) { return uid[a] < uid[b]; });
+  }
   for_each_row_array(s, [&](auto& a) { gather(a, p); });
   if constexpr (requires { s.cluster; }) {
     std::vector<std::int32_t> relabel;

@@ -403,3 +403,61 @@ TEST(CheckpointEngines, ACorruptFlagIsRefusedNotLoaded) {
     EXPECT_NE(std::string(e.what()).find("flag of value 7 in \"part\""), std::string::npos) << e.what();
   }
 }
+
+// An array of equal elements is saved as one element with its length (kFill); it loads as the
+// same array, an array with one element different is saved whole, and a filled length beyond any
+// engine's (a corrupt state) is refused before anything is allocated.
+TEST(CheckpointEngines, ArraysOfEqualElementsAreSavedOnce) {
+  const std::vector<double> same(1000, -1.5);
+  std::vector<double> one_off = same;
+  one_off[517] = 2.0;
+  const std::vector<matep::Vec<3>> vecs(300, matep::Vec<3>(1.0, -2.0, 3.0));
+  const std::vector<int> single{4};
+  matep::StateWriter w;
+  w.tag("part");
+  w(same);
+  const std::size_t after_same = w.bytes.size();
+  w(one_off);
+  const std::size_t after_one_off = w.bytes.size();
+  w(vecs);
+  w(single);
+  EXPECT_EQ(after_same, 4 + 4 + 8 + sizeof(double));  // tag, length, one element
+  EXPECT_EQ(after_one_off - after_same, 8 + 1000 * sizeof(double));
+  EXPECT_EQ(w.bytes.size() - after_one_off, 8 + sizeof(matep::Vec<3>) + 8 + sizeof(int));
+  matep::StateWriter count;
+  count.count_only = true;
+  count.tag("part");
+  count(same);
+  count(one_off);
+  count(vecs);
+  count(single);
+  EXPECT_EQ(count.size, w.bytes.size());
+
+  std::vector<double> a, b;
+  std::vector<matep::Vec<3>> c;
+  std::vector<int> d;
+  matep::StateReader r(w.bytes);
+  r.tag("part");
+  r(a);
+  r(b);
+  r(c);
+  r(d);
+  EXPECT_TRUE(r.done());
+  EXPECT_EQ(a, same);
+  EXPECT_EQ(b, one_off);
+  EXPECT_EQ(c, vecs);
+  EXPECT_EQ(d, single);
+
+  std::vector<std::uint8_t> bytes = w.bytes;
+  const std::uint64_t huge = (std::uint64_t{1} << 63) | (std::uint64_t{1} << 50);
+  std::memcpy(bytes.data() + 8, &huge, sizeof huge);  // the first array's length
+  matep::StateReader bad(bytes);
+  bad.tag("part");
+  try {
+    bad(a);
+    FAIL() << "a filled array of 2^50 elements was loaded";
+  } catch (const matep::StateError& e) {
+    EXPECT_NE(std::string(e.what()).find("array of 1125899906842624 elements in \"part\""), std::string::npos)
+        << e.what();
+  }
+}

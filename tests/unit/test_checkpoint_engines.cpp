@@ -6,6 +6,7 @@
 #include <atomic>
 #include <cstring>
 #include <random>
+#include <string>
 #include <vector>
 
 #include "engine/edm.hpp"
@@ -380,6 +381,21 @@ TEST(CheckpointEngines, EdmCasesResumeBitForBit) {
 }  // namespace
 }  // namespace matep
 
+namespace {
+// Loads part "part" of `bytes` with load(reader) and expects it refused, the message naming `what`.
+template <class Load>
+void expect_refused(const std::vector<std::uint8_t>& bytes, Load&& load, const std::string& what) {
+  matep::StateReader r(bytes);
+  r.tag("part");
+  try {
+    load(r);
+    ADD_FAILURE() << "loaded, where \"" << what << "\" was expected";
+  } catch (const matep::StateError& e) {
+    EXPECT_NE(std::string(e.what()).find(what), std::string::npos) << e.what();
+  }
+}
+}  // namespace
+
 // A flag of a saved state is one byte, 0 or 1; a corrupt byte is refused (found by the checkpoint
 // fuzzer under UBSan: loading it into a bool was undefined behaviour).
 TEST(CheckpointEngines, ACorruptFlagIsRefusedNotLoaded) {
@@ -394,14 +410,7 @@ TEST(CheckpointEngines, ACorruptFlagIsRefusedNotLoaded) {
   good(back);
   EXPECT_TRUE(back);
   bytes.back() = 7;
-  matep::StateReader bad(bytes);
-  bad.tag("part");
-  try {
-    bad(back);
-    FAIL() << "a flag byte of 7 was loaded";
-  } catch (const matep::StateError& e) {
-    EXPECT_NE(std::string(e.what()).find("flag of value 7 in \"part\""), std::string::npos) << e.what();
-  }
+  expect_refused(bytes, [&](matep::StateReader& r) { r(back); }, "flag of value 7 in \"part\"");
 }
 
 // An array of equal elements is saved as one element with its length (kFill); it loads as the
@@ -451,13 +460,5 @@ TEST(CheckpointEngines, ArraysOfEqualElementsAreSavedOnce) {
   std::vector<std::uint8_t> bytes = w.bytes;
   const std::uint64_t huge = (std::uint64_t{1} << 63) | (std::uint64_t{1} << 50);
   std::memcpy(bytes.data() + 8, &huge, sizeof huge);  // the first array's length
-  matep::StateReader bad(bytes);
-  bad.tag("part");
-  try {
-    bad(a);
-    FAIL() << "a filled array of 2^50 elements was loaded";
-  } catch (const matep::StateError& e) {
-    EXPECT_NE(std::string(e.what()).find("array of 1125899906842624 elements in \"part\""), std::string::npos)
-        << e.what();
-  }
+  expect_refused(bytes, [&](matep::StateReader& r) { r(a); }, "array of 1125899906842624 elements in \"part\"");
 }

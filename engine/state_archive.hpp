@@ -54,7 +54,7 @@ concept Plain = std::is_trivially_destructible_v<T> && !std::is_pointer_v<T> && 
 
 // Arrays of equal elements: the length's top bit marks one saved element for all of them (the
 // hybrid's state is mostly such arrays while few grains are soft: cooling_clusters.toml's end
-// checkpoint 3.1 instead of 3.8 MB). A filled array longer than kMaxFill is a corrupt state.
+// checkpoint 3.3 instead of 3.8 MB). A filled array longer than kMaxFill is a corrupt state.
 inline constexpr std::uint64_t kFill = std::uint64_t{1} << 63;
 inline constexpr std::uint64_t kMaxFill = std::uint64_t{1} << 40;
 inline bool uniform(const void* p, std::size_t n, std::size_t size) {

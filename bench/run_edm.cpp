@@ -27,6 +27,7 @@
 
 #include "bench/common.hpp"
 #include "engine/edm.hpp"
+#include "engine/renumber.hpp"
 
 using namespace matep;
 
@@ -77,11 +78,7 @@ System<3> lattice(int n_side, double rho, std::uint64_t seed, const std::string&
       };
       std::sort(perm.begin(), perm.end(), [&](std::uint32_t a, std::uint32_t b) { return key(a) < key(b); });
     }
-    const std::vector<Vec<3>> x = s.x, v = s.v;
-    for (int i = 0; i < N; ++i) {
-      s.x[i] = x[perm[i]];
-      s.v[i] = v[perm[i]];
-    }
+    reorder(s, perm);  // engine/renumber.hpp
   }
   return s;
 }

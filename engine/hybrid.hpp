@@ -47,6 +47,8 @@ struct HybridSettings {
                                // from cost_ratio (engine/hybrid/cost.hpp; not reproducible run to run)
   double rest_speed = 0.0;  // sleeping threshold [m/s]; 0 = no sleeping
   double rest_time = 0.0;   // how long a grain must stay below rest_speed; 0 = 20 t_c
+  bool coast = true;        // the soft set skips the substeps of a free flight (engine/hybrid/hybrid.cpp,
+                            // coast_plan); false: a substep at every step, as before
   int threads = 1;          // the soft set's threads (0: all cores, OMP_NUM_THREADS respected); a run
                             // is deterministic for a given count
   int min_per_thread = 2048;  // awake soft grains per thread at least (fewer threads below; the

@@ -71,6 +71,8 @@ struct HybridStats {
   std::uint64_t slept = 0;            // particles put to sleep (rest rule)
   std::uint64_t woken = 0;            // sleeping particles woken
   std::uint64_t substeps = 0;         // TDM substep events
+  std::uint64_t coasts = 0;           // substeps followed by a coast (the soft set in free flight)
+  std::uint64_t coasted_steps = 0;    // grid steps the coasts skipped
   std::uint64_t soft_particle_steps = 0;  // sum over substeps of the awake soft particles
   std::uint64_t max_soft = 0;         // largest soft set (awake + asleep)
   std::uint64_t soft_at_end = 0;      // soft particles (awake + asleep) at the end

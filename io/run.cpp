@@ -71,6 +71,7 @@ HybridSettings hybrid_settings(const Scene& s) {
   h.cost_measured = y.cost_measured;
   if (y.rest_speed) h.rest_speed = *y.rest_speed;
   if (y.rest_time) h.rest_time = *y.rest_time;
+  h.coast = y.coast;
   h.threads = s.threads.value_or(0);
   return h;
 }

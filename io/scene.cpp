@@ -1173,7 +1173,7 @@ Scene build_scene(toml::table& root, const std::string& file, const fs::path& ba
   if (top.has("hybrid")) {
     const TableReader hy = top.sub("hybrid");
     hy.allow({"stability", "repeats", "speed_fall", "lookahead", "hysteresis", "skin", "cost_ratio", "rest_speed",
-              "rest_time"});
+              "rest_time", "coast"});
     // Read and checked whatever run.method is (so that --set run.method=tdm compares a hybrid
     // scene with the pure methods); used only by the hybrid engine.
     HybridSpec& h = scene.hybrid;
@@ -1192,6 +1192,7 @@ Scene build_scene(toml::table& root, const std::string& file, const fs::path& ba
     }
     h.rest_speed = hy.number_opt("rest_speed", kNonNegative);
     h.rest_time = hy.number_opt("rest_time", kPositive);
+    h.coast = hy.boolean_or("coast", true);
   }
 
   // [output]

@@ -40,6 +40,7 @@ struct OutputSpec {
 // [hybrid]: the switching rule of run.method = "hybrid" (engine/hybrid.hpp); unset = default.
 struct HybridSpec {
   std::optional<double> stability, speed_fall, lookahead, hysteresis, skin, cost_ratio, rest_speed, rest_time;
+  bool coast = true;  // the soft set may skip substeps in free flight
   std::optional<int> repeats;
   bool cost_measured = false;  // cost_ratio = "measured"
 };

@@ -241,6 +241,34 @@ TEST(CollapseHybrid, SmallCollapsingGroupsEndWhereConvergedTdmEnds) {
   }
 }
 
+// The grains the lookahead turned soft go back to EDM once their sequence is over, before the
+// release hysteresis: with a hysteresis longer than the run they would stay soft to its end. They
+// go only when no two of them (nor one and a hard neighbour) would meet within the lookahead's
+// window, so the outcome is still soft reality's.
+TEST(CollapseHybrid, ALookaheadGroupGoesHardOnceItsSequenceIsOver) {
+  const std::vector<double> x3a{0, 2, 4.5}, v3a{1, 0, -1}, x4b{0, 1.5, 3.2, 5}, v4b{1, 0.3, -0.2, -1};
+  for (const auto& [x, v] : {std::pair{x3a, v3a}, std::pair{x4b, v4b}}) {
+    const System<2> sys = grains_in_a_line<2>(0.06, x, v);
+    TdmSettings ts;
+    ts.end_time = 6.0;
+    ts.threads = 1;
+    EdmSettings es;
+    es.end_time = 6.0;
+    HybridSettings hs;
+    hs.hysteresis = 100.0;
+    const RunResult<2> soft = run_tdm<2>(sys, ts);
+    const RunResult<2> hyb = run_hybrid<2>(sys, es, hs);
+    ASSERT_EQ(hyb.status, "ok") << hyb.message;
+    EXPECT_GT(hyb.hybrid.to_soft, 0u) << x.size();
+    EXPECT_EQ(hyb.hybrid.to_hard, hyb.hybrid.to_soft) << x.size();
+    EXPECT_EQ(hyb.hybrid.soft_at_end, 0u) << x.size();
+    const auto ds = relative_velocities(soft), dh = relative_velocities(hyb);
+    EXPECT_LE(distance(dh, ds), 0.25 * norm(ds)) << x.size() << " grains";
+    std::printf("%zu grains, r = 0.06, hysteresis 100: %llu switches, all hard again, off TDM by %.0f %%\n", x.size(),
+                static_cast<unsigned long long>(hyb.hybrid.to_soft), 100 * distance(dh, ds) / norm(ds));
+  }
+}
+
 TEST(CollapseHybrid, FourGrainLinesAboveTheThresholdEndWhereConvergedTdmEnds) {
   // Four grains in a line above their collapse threshold (r = 0.2, 0.3; McNamara and Young's
   // threshold grows with the number of grains, docs/references.md §3.1): EDM does not collapse,

@@ -345,6 +345,69 @@ TEST(HybridSwitch, OneClusterSoftAndBackConservesMomentumAndEnergy) {
   for (const auto& w : rec.switches) EXPECT_EQ(w.vi_before, w.vi_after);
 }
 
+// ---- coasts ------------------------------------------------------------------------------------
+
+// The soft set in free flight skips its substeps (a coast) and lands where its substeps would
+// have taken it: the free flight under gravity is exact for the leapfrog, so the two runs agree to
+// round-off. Three grains turn soft by the stability rule (as in the test above) and stay soft to
+// the end (the hysteresis is longer than the run); gravity along the periodic y axis, so that the
+// closed form's g h^2 k (k + 1) / 2 is tested and the grains cross cells and the periodic faces
+// during coasts. After the cluster's contacts C flies on and comes round through the periodic x
+// faces to hit A: the coast before that touch must end at the last step before it, where the
+// substeps' run sees the contact begin.
+TEST(HybridCoast, TheSoftSetCoastsThroughFreeFlightAndLandsWhereItsSubstepsDo) {
+  System<3> s = periodic_unit_box(Vec<3>(7.5, 10.0, 10.0), 1e5, 0.9999);
+  s.gravity = Vec<3>(0.0, -0.5, 0.0);
+  const double gap = 1e-4;
+  const std::vector<Vec<3>> x = {Vec<3>(2.0, 5.0, 5.0), Vec<3>(4.0, 5.05, 5.0), Vec<3>(5.0 + gap, 5.1, 5.01)};
+  const std::vector<Vec<3>> v = {Vec<3>(1.0, 0.0, 0.0), Vec<3>(0.0, 0.0, 0.0), Vec<3>(-0.1, 0.0, 0.0)};
+  for (int i = 0; i < 3; ++i) {
+    s.x.push_back(x[i]);
+    s.v.push_back(v[i]);
+    s.radius.push_back(0.5);
+    s.material.push_back(0);
+  }
+  EdmSettings es;
+  es.end_time = 6.0;
+  es.thermo_interval = 1.0;
+  HybridSettings hs;
+  hs.stability = 1e3;
+  hs.repeats = 1;
+  hs.speed_fall = 1.0;
+  hs.hysteresis = 100.0;  // soft to the end
+  hs.coast = false;
+  const RunResult<3> step = run_hybrid<3>(s, es, hs);
+  hs.coast = true;
+  const RunResult<3> coast = run_hybrid<3>(s, es, hs);
+  ASSERT_EQ(step.status, "ok") << step.message;
+  ASSERT_EQ(coast.status, "ok") << coast.message;
+  EXPECT_EQ(coast.hybrid.to_soft, 3u);
+  EXPECT_EQ(coast.hybrid.soft_at_end, 3u);
+  EXPECT_EQ(step.hybrid.coasts, 0u);
+  // Most of the run is free flight: the coasts skip most of the grid steps.
+  EXPECT_GT(coast.hybrid.coasts, 10u);
+  EXPECT_GT(coast.hybrid.coasted_steps, 5 * coast.hybrid.substeps);
+  EXPECT_EQ(coast.hybrid.substeps + coast.hybrid.coasted_steps, step.hybrid.substeps);
+  // After the cluster's push A drifts back slowly (x speed -0.1) and C carries the momentum; C
+  // comes round through the periodic x faces and hits A after t = 5, which then moves on (0.58):
+  // the later contact happened in both runs.
+  EXPECT_GT(step.v[0].x(), 0.3);
+  EXPECT_GT(coast.v[0].x(), 0.3);
+  double dx = 0.0, dv = 0.0, vmax = 0.0;
+  for (int i = 0; i < 3; ++i) {
+    Vec<3> d = coast.x[i] - step.x[i];
+    for (int k = 0; k < 3; ++k) d[k] -= s.upper[k] * std::round(d[k] / s.upper[k]);
+    dx = std::max(dx, d.norm());
+    dv = std::max(dv, (coast.v[i] - step.v[i]).norm());
+    vmax = std::max(vmax, step.v[i].norm());
+  }
+  EXPECT_LT(dx, 1e-9);
+  EXPECT_LT(dv, 1e-9 * vmax);
+  ::testing::Test::RecordProperty("coast_vs_steps", fmt::format("dx {:.3g} dv {:.3g}; substeps {} + {} coasted of {}",
+                                                                dx, dv, coast.hybrid.substeps,
+                                                                coast.hybrid.coasted_steps, step.hybrid.substeps));
+}
+
 // ---- dilute gas ------------------------------------------------------------------------------
 
 // e = 0.95 at packing fraction 0.05 without gravity: collisions are rare and binary; the hybrid

@@ -200,10 +200,11 @@ TEST(CheckpointCli, AnotherSceneVersionMethodOrACorruptFileIsRefusedNamingWhatDi
                  "the checksum does not match (the file is corrupt)");
   expect_refused("run " + scene + " --set run.end_time=0.5" + resume + write("cut.bin", bytes.substr(0, bytes.size() / 3)),
                  d, "(cut short or extended)");
-  std::string v9 = bytes;
-  v9[8] = 9;
-  expect_refused("run " + scene + " --set run.end_time=0.5" + resume + write("v9.bin", v9), d,
-                 fmt::format("checkpoint version 9, this matep reads version {}", matep::kCheckpointVersion));
+  std::string later = bytes;  // a version this matep does not read: the next one
+  later[8] = static_cast<char>(matep::kCheckpointVersion + 1);
+  expect_refused("run " + scene + " --set run.end_time=0.5" + resume + write("later.bin", later), d,
+                 fmt::format("checkpoint version {}, this matep reads version {}", matep::kCheckpointVersion + 1,
+                             matep::kCheckpointVersion));
   expect_refused("run " + scene + " --set run.end_time=0.5" + resume + write("other.bin", "id,x,y\n"), d,
                  "not a matep checkpoint");
   expect_refused("run " + scene + " --set run.end_time=0.5" + resume + (root / "absent.bin").string(), d, "no such file");

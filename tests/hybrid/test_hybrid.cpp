@@ -147,6 +147,16 @@ System<3> periodic_unit_box(const Vec<3>& upper, double stiffness, double e = 1.
   return s;
 }
 
+// Spheres of radius 0.5 of the first material at x with velocities v.
+void add_grains(System<3>& s, const std::vector<Vec<3>>& x, const std::vector<Vec<3>>& v) {
+  for (std::size_t i = 0; i < x.size(); ++i) {
+    s.x.push_back(x[i]);
+    s.v.push_back(v[i]);
+    s.radius.push_back(0.5);
+    s.material.push_back(0);
+  }
+}
+
 // Three elastic spheres on a line, no gravity: A flies at B, B is pushed into C right away (C
 // sits just beyond B), so B's second collision follows its first within k t_c: the cluster turns
 // soft; once apart for the hysteresis it is released to EDM again.
@@ -296,12 +306,7 @@ TEST(HybridSwitch, OneClusterSoftAndBackConservesMomentumAndEnergy) {
   const double gap = 1e-4;
   const std::vector<Vec<3>> x = {Vec<3>(10.0, 5.0, 5.0), Vec<3>(12.0, 5.1, 5.0), Vec<3>(13.0 + gap, 5.25, 5.02)};
   const std::vector<Vec<3>> v = {Vec<3>(1.0, 0.02, -0.01), Vec<3>(0.0, 0.0, 0.0), Vec<3>(-0.1, 0.0, 0.03)};
-  for (int i = 0; i < 3; ++i) {
-    s.x.push_back(x[i]);
-    s.v.push_back(v[i]);
-    s.radius.push_back(0.5);
-    s.material.push_back(0);
-  }
+  add_grains(s, x, v);
   Vec<3> p0 = Vec<3>::Zero();
   double ke0 = 0.0;
   for (int i = 0; i < 3; ++i) {
@@ -361,12 +366,7 @@ TEST(HybridCoast, TheSoftSetCoastsThroughFreeFlightAndLandsWhereItsSubstepsDo) {
   const double gap = 1e-4;
   const std::vector<Vec<3>> x = {Vec<3>(2.0, 5.0, 5.0), Vec<3>(4.0, 5.05, 5.0), Vec<3>(5.0 + gap, 5.1, 5.01)};
   const std::vector<Vec<3>> v = {Vec<3>(1.0, 0.0, 0.0), Vec<3>(0.0, 0.0, 0.0), Vec<3>(-0.1, 0.0, 0.0)};
-  for (int i = 0; i < 3; ++i) {
-    s.x.push_back(x[i]);
-    s.v.push_back(v[i]);
-    s.radius.push_back(0.5);
-    s.material.push_back(0);
-  }
+  add_grains(s, x, v);
   EdmSettings es;
   es.end_time = 6.0;
   es.thermo_interval = 1.0;

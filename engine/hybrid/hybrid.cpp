@@ -912,13 +912,13 @@ class HybridEngine final : public edm::EdmCore<D, CalendarQueue, HybridEngine<D>
   }
 
   // The lookahead's sequence is over for an early candidate when no two candidates, one of them
-  // early, would meet in free flight within the release hysteresis (their relative velocity is
-  // constant: a uniform field moves both alike). Waiting out the hysteresis could then change
-  // nothing between them, and the group may go now; otherwise both stay (held_). Releasing a grain
-  // as soon as nothing near it approached (the first version) let a grain farther away, still
-  // closing in, meet it hard: three grains in a line at r = 0.06 (tests/analytic/test_collapse.cpp)
-  // ended 65 % off converged TDM instead of within 17 %. With more than kMaxEarly early
-  // candidates every one stays for the hysteresis.
+  // early, would meet in free flight within the lookahead's window (below; their relative
+  // velocity is constant: a uniform field moves both alike). Waiting out the hysteresis could then
+  // change nothing between them, and the group may go now; otherwise both stay (held_). Releasing
+  // a grain as soon as nothing near it approached (the first version) let a grain farther away,
+  // still closing in, meet it hard: three grains in a line at r = 0.06 (tests/analytic/
+  // test_collapse.cpp) ended 65 % off converged TDM instead of within 17 %. With more than
+  // kMaxEarly early candidates every one stays for the hysteresis.
   void hold_unfinished(double t) {
     early_.clear();
     for (const int i : group_)

@@ -21,6 +21,7 @@ import os
 import shutil
 import subprocess
 import sys
+import time
 import xml.etree.ElementTree as ET
 from pathlib import Path
 
@@ -155,10 +156,14 @@ def main() -> int:
     # Debian's ParaView renders through X: without a display, under xvfb-run (a virtual one); else
     # offscreen if the build can.
     if xvfb and not os.environ.get("DISPLAY"):
-        for _ in range(3):  # a virtual display that was not ready in time fails the window: try again
+        # A virtual display that was not ready in time fails the window: try again, waiting longer
+        # each time (on a loaded 2-core machine three quick tries all failed once, in the test
+        # suite's render of every case).
+        for attempt in range(5):
             r = subprocess.run(xvfb + [pvbatch] + script, env=env, capture_output=True, text=True)
             if r.returncode == 0 or "CreateAWindow" not in r.stderr:
                 break
+            time.sleep(2 ** attempt)
     else:
         r = subprocess.run([pvbatch, "--force-offscreen-rendering"] + script, env=env, capture_output=True, text=True)
         if r.returncode != 0 and xvfb:

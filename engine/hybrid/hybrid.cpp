@@ -1604,10 +1604,11 @@ class HybridEngine final : public edm::EdmCore<D, CalendarQueue, HybridEngine<D>
     if (at > static_cast<double>(n)) n = static_cast<std::int64_t>(at);
     while (clock_t0_ + static_cast<double>(n) * h_ < now_) ++n;
     if (n >= static_cast<std::int64_t>(clock_n_)) return;
-    hstats_.coasted_steps -= clock_n_ - static_cast<std::uint64_t>(n);
+    const std::uint64_t unskipped = clock_n_ - static_cast<std::uint64_t>(n);
+    hstats_.coasted_steps -= unskipped;
     if (n == sub_last_n_ + 1) --hstats_.coasts;  // no step skipped after all
-    since_cost_check_ -= std::min<std::uint64_t>(since_cost_check_, clock_n_ - static_cast<std::uint64_t>(n));
-    if (sleeping_) since_sleep_check_ -= std::min<std::uint64_t>(since_sleep_check_, clock_n_ - static_cast<std::uint64_t>(n));
+    since_cost_check_ -= std::min(since_cost_check_, unskipped);
+    if (sleeping_) since_sleep_check_ -= std::min(since_sleep_check_, unskipped);
     clock_n_ = static_cast<std::uint64_t>(n);
     queue_->set(substep_id_, clock_t0_ + static_cast<double>(clock_n_) * h_);
   }
@@ -1618,32 +1619,15 @@ class HybridEngine final : public edm::EdmCore<D, CalendarQueue, HybridEngine<D>
     if (!coast_scene_ || soft_.empty() || !pending_.empty() || asleep_ > 0 || !we_.empty() || !status_.empty())
       return 1;
     if (set_.stop && set_.stop->load(std::memory_order_relaxed)) return 1;
-    // The cadences of the cost release and the rest rule, counted from this substep's check. The
-    // cost release can free no grain that the stability rule turned soft (but the lookahead's)
-    // before its hysteresis, which bounds the coast below: with only such grains soft its checks
-    // would find nothing.
-    bool releasable = false;
-    for (const int i : soft_) {
-      const std::uint8_t why = joined_by_[i] & static_cast<std::uint8_t>(~kEarly);
-      releasable = releasable || (joined_by_[i] & kEarly) || (why != kByStability && why != kByCluster);
-    }
-    const std::uint64_t cost_since = since_cost_check_ + 1 >= cost_every_ ? 0 : since_cost_check_ + 1;
-    std::uint64_t kmax = releasable ? std::min<std::uint64_t>(kMaxCoast, cost_every_ - cost_since) : kMaxCoast;
-    if (sleeping_) {
-      const std::uint64_t sleep_since = since_sleep_check_ + 1 >= sleep_every_ ? 0 : since_sleep_check_ + 1;
-      kmax = std::min(kmax, sleep_every_ - sleep_since);
-    }
-    if (kmax < 2) return 1;
-    double s = static_cast<double>(kmax) * h_;  // the coast's longest span
-    s = std::min(s, iface_due_ - t);
-    for (int id = this->N_; id < this->N_ + static_cast<int>(this->system_.size()); ++id)
-      if (id != substep_id_ && queue_->contains(id)) s = std::min(s, queue_->time_of(id) - t);
-    if (!(s >= 2.0 * h_)) return 1;
+    // Each soft grain: in contact (no coast), its release time, its reach (to the cell box's faces
+    // and to half the skin from x0), and whether the cost release could free it. Checked first:
+    // in a soft bed the first grain in contact ends the plan.
     const double gn = g_.norm();
+    double s = static_cast<double>(kMaxCoast) * h_;  // the coast's longest span
+    bool releasable = false;
     for (const int i : soft_) {
       if (touching_[i] || f_[i] != Vec<D>::Zero()) return 1;
       s = std::min(s, last_contact_[i] + hyst_ - t);
-      // The reach: to the cell box's faces and to half the skin from x0.
       const Vec<D>& x = hot_[i].x;
       double reach = 0.5 * lskin_ - (x - x0_[i]).norm();
       for (int k = 0; k < D; ++k) reach = std::min({reach, x[k] - cblo_[i][k], cbhi_[i][k] - x[k]});
@@ -1653,7 +1637,25 @@ class HybridEngine final : public edm::EdmCore<D, CalendarQueue, HybridEngine<D>
       const double smax = a > 0.0 ? 2.0 * reach / (b + std::sqrt(b * b + 4.0 * a * reach)) : b > 0.0 ? reach / b : kNever;
       s = std::min(s, smax);
       if (!(s >= 2.0 * h_)) return 1;
+      const std::uint8_t why = joined_by_[i] & static_cast<std::uint8_t>(~kEarly);
+      releasable = releasable || (joined_by_[i] & kEarly) || (why != kByStability && why != kByCluster);
     }
+    // The cadences of the cost release and the rest rule, counted from this substep's check. The
+    // cost release can free no grain that the stability rule turned soft (but the lookahead's)
+    // before its hysteresis, which bounds the coast above: with only such grains soft its checks
+    // would find nothing.
+    if (releasable) {
+      const std::uint64_t since = since_cost_check_ + 1 >= cost_every_ ? 0 : since_cost_check_ + 1;
+      s = std::min(s, static_cast<double>(cost_every_ - since) * h_);
+    }
+    if (sleeping_) {
+      const std::uint64_t since = since_sleep_check_ + 1 >= sleep_every_ ? 0 : since_sleep_check_ + 1;
+      s = std::min(s, static_cast<double>(sleep_every_ - since) * h_);
+    }
+    s = std::min(s, iface_due_ - t);
+    for (int id = this->N_; id < this->N_ + static_cast<int>(this->system_.size()); ++id)
+      if (id != substep_id_ && queue_->contains(id)) s = std::min(s, queue_->time_of(id) - t);
+    if (!(s >= 2.0 * h_)) return 1;
     bool fixed = false;
     pairs_.for_each([&](const PairEntry& e) {
       if (fixed || !(s >= 2.0 * h_)) return;

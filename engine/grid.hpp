@@ -152,6 +152,7 @@ class CellGrid {
   int cells() const { return cells_; }
   int count(int k) const { return n_[k]; }
   double width(int k) const { return w_[k]; }
+  double length(int k) const { return len_[k]; }  // the domain's along axis k (a periodic image's shift)
   const Vec<D>& lower() const { return lo_; }
   bool periodic(int k) const { return periodic_[k]; }
   int stride(int k) const { return stride_[k]; }

@@ -13,7 +13,8 @@
 //    ratio ran up from 18 to 95 as the rule followed it;
 //  * the soft cost per particle-step: the substeps' time over the awake soft grains they advanced.
 // Both are sums over a sliding window that forgets with weight 1/kSpan per substep, so that they
-// follow a scene whose dense part grows or thins. A gap in which the run wrote output (a thermo
+// follow a scene whose dense part grows or thins. The hybrid times one substep in `stride` (and
+// the gap after it): each sample then forgets what `stride` substeps would. A gap in which the run wrote output (a thermo
 // row, a snapshot, a checkpoint) is left out: writing is neither method's cost.
 // ratio() is the crossover cost_ratio of the rule (switching.hpp): hard cost per particle-collision
 // over soft cost per particle-step; NaN until both have been measured (kMinCollisions particle-
@@ -33,6 +34,9 @@ class CostMeter {
   static constexpr double kSpan = 4096.0;         // substeps of memory
   static constexpr double kMinCollisions = 64.0;  // particle-collisions before the hard cost counts
   static constexpr double kMinSteps = 4096.0;     // soft particle-steps before the soft cost counts
+
+  // stride: substeps per sample (the sums forget (1 - 1/kSpan)^stride per sample).
+  explicit CostMeter(int stride = 1) : keep_(std::pow(1.0 - 1.0 / kSpan, std::max(1, stride))) {}
 
   // At the start of a substep: the hard work since the last substep's end. particle_collisions:
   // the run's count so far; wrote: whether output was written since the last substep.
@@ -58,12 +62,12 @@ class CostMeter {
 
   // The window's sums, from measured durations (the tests feed them directly).
   void add_hard(double seconds, double particle_collisions) {
-    hard_s_ = hard_s_ * kKeep + seconds;
-    hard_n_ = hard_n_ * kKeep + particle_collisions;
+    hard_s_ = hard_s_ * keep_ + seconds;
+    hard_n_ = hard_n_ * keep_ + particle_collisions;
   }
   void add_soft(double seconds, double particle_steps) {
-    soft_s_ = soft_s_ * kKeep + seconds;
-    soft_n_ = soft_n_ * kKeep + particle_steps;
+    soft_s_ = soft_s_ * keep_ + seconds;
+    soft_n_ = soft_n_ * keep_ + particle_steps;
   }
 
   double hard_seconds_per_collision() const { return hard_n_ >= kMinCollisions ? hard_s_ / hard_n_ : kNaN; }
@@ -71,9 +75,9 @@ class CostMeter {
   double ratio() const { return hard_seconds_per_collision() / soft_seconds_per_step(); }
 
  private:
-  static constexpr double kKeep = 1.0 - 1.0 / kSpan;
   static constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
   static double seconds(Clock::duration d) { return std::chrono::duration<double>(d).count(); }
+  double keep_;  // what a sample's sums keep of the earlier ones
   double hard_s_ = 0.0, hard_n_ = 0.0, soft_s_ = 0.0, soft_n_ = 0.0;
   Clock::time_point begin_{}, end_{};
   double coll_at_end_ = 0.0;

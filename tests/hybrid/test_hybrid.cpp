@@ -207,6 +207,43 @@ TEST(HybridSwitch, AGroupOfGrainsWithinEachOthersSkinReturnsHardTogether) {
   ::testing::Test::RecordProperty("worst_position_vs_tdm", fmt::format("{:.3g}", worst));
 }
 
+// Hard grains beside a periodic face, each within its capture distance of a soft pair's image on
+// the other side and flying at it (one through the upper x face, one through the lower y face):
+// the capture check (with four soft grains it looks at the soft set directly instead of walking
+// the cells) finds the images across the faces and the grains join before they touch, so the
+// contacts are soft and the run lands where pure TDM's does. Had a check missed an image, its
+// grain would have passed into the pair without a force.
+TEST(HybridCapture, HardGrainsMeetingSoftOnesAcrossPeriodicFacesJoinBeforeTheTouch) {
+  System<3> s = periodic_unit_box(Vec<3>(5.0, 5.0, 5.0), 1e5);  // 4 cells an axis, not hashed
+  // Each pair starts overlapping (soft); each grain's gap to the image of the pair's first grain
+  // (at x = 5.6, and at y = -0.6) is 5e-4 d (the least capture distance, hybrid.skin, is 1e-3 d).
+  add_grains(s,
+             {Vec<3>(0.6, 2.5, 1.0), Vec<3>(1.6 - 1e-6, 2.5, 1.0), Vec<3>(4.5995, 2.5, 1.0),
+              Vec<3>(2.5, 4.4, 3.5), Vec<3>(2.5, 3.4 + 1e-6, 3.5), Vec<3>(2.5, 0.4005, 3.5)},
+             {Vec<3>::Zero(), Vec<3>::Zero(), Vec<3>(0.1, 0.0, 0.0), Vec<3>::Zero(), Vec<3>::Zero(),
+              Vec<3>(0.0, -0.1, 0.0)});
+  EdmSettings es;
+  es.end_time = 0.5;
+  const RunResult<3> r = run_hybrid<3>(s, es, HybridSettings{});
+  ASSERT_EQ(r.status, "ok") << r.message;
+  EXPECT_EQ(r.hybrid.by_overlap, 4u);
+  EXPECT_EQ(r.hybrid.by_capture, 2u);
+  TdmSettings ts;
+  ts.end_time = es.end_time;
+  ts.threads = 1;
+  const RunResult<3> rt = run_tdm<3>(s, ts);
+  ASSERT_EQ(rt.status, "ok") << rt.message;
+  double worst = 0.0;
+  for (int i = 0; i < 6; ++i) worst = std::max(worst, (r.x[i] - rt.x[i]).norm());
+  // (Missing an image, a grain would be 0.05 d from TDM's by the end; the soft contacts of the two
+  // runs agree to the step's error, about 1e-7 d.)
+  EXPECT_LT(worst, 1e-6);
+  for (const int i : {2, 5}) {
+    EXPECT_LT((r.v[i] - rt.v[i]).norm(), 1e-5) << i;
+    EXPECT_LT(r.v[i].norm(), 0.02) << i;  // the grain passed most of its momentum on along the row
+  }
+}
+
 // A dense gas that EDM runs to its end stays mostly hard: 512 spheres at phi = 0.5, e = 0.5,
 // T = 1 (the earlier stability map's worst cell). With a capture distance fixed at 0.01 d (each
 // grain then has 0.7 neighbours within it), the cost rule judging single grains and rapid runs

@@ -397,6 +397,27 @@ TEST(CostMeter, TheRatioIsHardCostPerCollisionOverSoftCostPerStep) {
   EXPECT_GT(m.ratio(), 79.0);
 }
 
+// The hybrid times one substep in eight: each sample forgets what eight substeps would, so the
+// window still spans 4096 substeps (5 spans: 2560 samples), where a meter sampled at every
+// substep still weighs the old cost after the same 2560 samples (e^-0.625 of the window).
+TEST(CostMeter, ASampleOfEveryEighthSubstepForgetsWhatEightSubstepsWould) {
+  CostMeter every8(8), every1;
+  for (CostMeter* m : {&every8, &every1})
+    for (int k = 0; k < 5 * 4096; ++k) {  // both windows hold only this cost
+      m->add_hard(2e-6, 1.0);
+      m->add_soft(1e-4, 1000.0);
+    }
+  EXPECT_NEAR(every8.ratio(), 20.0, 1e-9);
+  EXPECT_NEAR(every1.ratio(), 20.0, 1e-9);
+  for (int k = 0; k < 5 * 4096 / 8; ++k)
+    for (CostMeter* m : {&every8, &every1}) {
+      m->add_hard(8e-6, 1.0);
+      m->add_soft(1e-4, 1000.0);
+    }
+  EXPECT_NEAR(every8.ratio(), 80.0, 0.01 * 80.0);
+  EXPECT_LT(every1.ratio(), 60.0);  // 80 - 60 e^-0.625 = 47.9
+}
+
 // Fed by the clock: the substeps are soft work, the gaps between them hard work; a gap in which
 // output was written is left out.
 TEST(CostMeter, SubstepsAreSoftWorkAndTheGapsBetweenThemHardWork) {

@@ -14,8 +14,9 @@
 //  * the soft cost per particle-step: the substeps' time over the awake soft grains they advanced.
 // Both are sums over a sliding window that forgets with weight 1/kSpan per substep, so that they
 // follow a scene whose dense part grows or thins. The hybrid times one substep in `stride` (and
-// the gap after it): each sample then forgets what `stride` substeps would. A gap in which the run wrote output (a thermo
-// row, a snapshot, a checkpoint) is left out: writing is neither method's cost.
+// the gap after it): each sample then forgets what `stride` substeps would. A gap in which the
+// run wrote output (a thermo row, a snapshot, a checkpoint) is left out: writing is neither
+// method's cost.
 // ratio() is the crossover cost_ratio of the rule (switching.hpp): hard cost per particle-collision
 // over soft cost per particle-step; NaN until both have been measured (kMinCollisions particle-
 // collisions and kMinSteps particle-steps in the window).

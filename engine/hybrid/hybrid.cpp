@@ -1762,7 +1762,6 @@ class HybridEngine final : public edm::EdmCore<D, CalendarQueue, HybridEngine<D>
     dirty_ = true;
   }
 
-  // Hard interface particles within the skin of a soft (or sleeping) one join the soft set.
   // f(j, shift) for the soft and sleeping grains j that for_neighbours(i) would visit (those in the
   // 3^D cells around i's), with the same image shifts (0 or a periodic axis's length, as the
   // grid's walk gives them), in the soft set's and then the sleepers' order. Only while
@@ -1795,6 +1794,7 @@ class HybridEngine final : public edm::EdmCore<D, CalendarQueue, HybridEngine<D>
   static constexpr std::size_t kDirectSoft = 16;
   bool direct_cells_ = false;
 
+  // Hard interface particles within the skin of a soft (or sleeping) one join the soft set.
   void capture(double t) {
     // Nothing due before iface_due_ (the earliest check of the list, brought forward by every
     // change to it): the scan would keep every entry as it is.

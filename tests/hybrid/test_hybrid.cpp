@@ -157,6 +157,20 @@ void add_grains(System<3>& s, const std::vector<Vec<3>>& x, const std::vector<Ve
   }
 }
 
+// The same grains in pure TDM on one thread to `end`, and the largest distance between a grain's
+// final position there and in run r.
+double worst_against_tdm(const System<3>& s, double end, const RunResult<3>& r, RunResult<3>* tdm = nullptr) {
+  TdmSettings ts;
+  ts.end_time = end;
+  ts.threads = 1;
+  const RunResult<3> rt = run_tdm<3>(s, ts);
+  EXPECT_EQ(rt.status, "ok") << rt.message;
+  double worst = 0.0;
+  for (std::size_t i = 0; i < s.x.size(); ++i) worst = std::max(worst, (r.x[i] - rt.x[i]).norm());
+  if (tdm) *tdm = rt;
+  return worst;
+}
+
 // Three elastic spheres on a line, no gravity: A flies at B, B is pushed into C right away (C
 // sits just beyond B), so B's second collision follows its first within k t_c: the cluster turns
 // soft; once apart for the hysteresis it is released to EDM again.
@@ -189,13 +203,7 @@ TEST(HybridSwitch, AGroupOfGrainsWithinEachOthersSkinReturnsHardTogether) {
   EXPECT_EQ(r.hybrid.to_hard, 4u);
   EXPECT_EQ(r.hybrid.soft_at_end, 0u);
   // The same row in pure TDM: the push apart is the same soft contact, then free flight.
-  TdmSettings ts;
-  ts.end_time = es.end_time;
-  ts.threads = 1;
-  const RunResult<3> rt = run_tdm<3>(s, ts);
-  ASSERT_EQ(rt.status, "ok") << rt.message;
-  double worst = 0.0;
-  for (int i = 0; i < 4; ++i) worst = std::max(worst, (r.x[i] - rt.x[i]).norm());
+  const double worst = worst_against_tdm(s, es.end_time, r);
   EXPECT_LT(worst, 1e-8);  // (a displacement of 1e-3: the two step sequences agree to 1e-6 of it)
   // The pushed pair separates at dx0 sqrt(k / m*) (the spring's energy k dx0^2 / 2 becomes
   // m* v^2 / 2; elastic, m* = m / 2): 4.47e-4, to the TDM error of dt = t_c / 50.
@@ -228,13 +236,8 @@ TEST(HybridCapture, HardGrainsMeetingSoftOnesAcrossPeriodicFacesJoinBeforeTheTou
   ASSERT_EQ(r.status, "ok") << r.message;
   EXPECT_EQ(r.hybrid.by_overlap, 4u);
   EXPECT_EQ(r.hybrid.by_capture, 2u);
-  TdmSettings ts;
-  ts.end_time = es.end_time;
-  ts.threads = 1;
-  const RunResult<3> rt = run_tdm<3>(s, ts);
-  ASSERT_EQ(rt.status, "ok") << rt.message;
-  double worst = 0.0;
-  for (int i = 0; i < 6; ++i) worst = std::max(worst, (r.x[i] - rt.x[i]).norm());
+  RunResult<3> rt;
+  const double worst = worst_against_tdm(s, es.end_time, r, &rt);
   // (Missing an image, a grain would be 0.05 d from TDM's by the end; the soft contacts of the two
   // runs agree to the step's error, about 1e-7 d.)
   EXPECT_LT(worst, 1e-6);

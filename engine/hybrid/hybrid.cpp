@@ -966,15 +966,20 @@ class HybridEngine final : public edm::EdmCore<D, CalendarQueue, HybridEngine<D>
       if (meets) held_.push_back(a);
     }
   }
-  // Whether two grains at separation r (centres) with constant relative velocity u touch (their
-  // centres closer than sig) within the time `horizon`.
-  static bool meet_within(const Vec<D>& r, const Vec<D>& u, double sig, double horizon) {
-    const double c = r.squaredNorm() - sig * sig;
-    if (c <= 0.0) return true;
+  // When two grains at separation r (centres) with constant relative velocity u first touch (their
+  // centres sig apart): the first root of |r + u s| = sig, in a form without cancellation; kNever
+  // when they move apart or pass each other, 0 when they approach already touching.
+  static double meet_time(const Vec<D>& r, const Vec<D>& u, double sig) {
     const double b = r.dot(u);
-    if (!(b < 0.0)) return false;
+    if (!(b < 0.0)) return kNever;
+    const double c = r.squaredNorm() - sig * sig;
+    if (!(c > 0.0)) return 0.0;
     const double disc = b * b - u.squaredNorm() * c;
-    return disc >= 0.0 && c / (-b + std::sqrt(disc)) < horizon;
+    return disc < 0.0 ? kNever : c / (-b + std::sqrt(disc));
+  }
+  // Whether they touch now or within the time `horizon`.
+  static bool meet_within(const Vec<D>& r, const Vec<D>& u, double sig, double horizon) {
+    return r.squaredNorm() - sig * sig <= 0.0 || meet_time(r, u, sig) < horizon;
   }
   static constexpr std::size_t kMaxEarly = 256, kMaxEarlyPairs = std::size_t{1} << 20;
 
@@ -1673,18 +1678,7 @@ class HybridEngine final : public edm::EdmCore<D, CalendarQueue, HybridEngine<D>
       }
       Vec<D> r = hot_[e.i].x - hot_[e.j].x;
       min_image(r);
-      const Vec<D> u = vh_[e.i] - vh_[e.j];
-      const double b = r.dot(u);
-      if (!(b < 0.0)) return;  // moving apart: they never meet in free flight
-      const double sig = hot_[e.i].R + hot_[e.j].R;
-      const double c = r.squaredNorm() - sig * sig, uu = u.squaredNorm();
-      const double disc = b * b - uu * c;
-      if (!(c > 0.0)) {
-        s = 0.0;
-        return;
-      }
-      if (disc < 0.0) return;  // they pass each other
-      s = std::min(s, c / (-b + std::sqrt(disc)));  // the first root, in a form without cancellation
+      s = std::min(s, meet_time(r, vh_[e.i] - vh_[e.j], hot_[e.i].R + hot_[e.j].R));
     });
     if (fixed) return 1;
     // The last grid point strictly before s.

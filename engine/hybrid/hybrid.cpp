@@ -425,9 +425,7 @@ class HybridEngine final : public edm::EdmCore<D, CalendarQueue, HybridEngine<D>
         fz_tmix_.assign(N_, Spin<D>::Zero());
       }
       fz_scale_.assign(N_, 0.0);
-      fz_overlap_.assign(N_, 0.0);
-      fz_disp2_.assign(N_, 0.0);
-      fz_contacts_.assign(N_, 0);
+      fz_step_.assign(N_, Vec<D>::Zero());
       x_check_.assign(N_, Vec<D>::Zero());
       fz_lost_.assign(N_, 0);
       fz_cand_.assign(N_, 0);
@@ -762,6 +760,7 @@ class HybridEngine final : public edm::EdmCore<D, CalendarQueue, HybridEngine<D>
     }
     last_contact_[i] = t;
     quiet_checks_[i] = 0;
+    if (sleeping_) x_check_[i] = hot_[i].x;  // the rest rule's steps count from here
     begun_n_[i] = 0;
     rate_t0_[i] = t;
     joined_by_[i] = reason;
@@ -2216,7 +2215,7 @@ class HybridEngine final : public edm::EdmCore<D, CalendarQueue, HybridEngine<D>
       double s2 = hot_[i].v.squaredNorm();
       if (rot_) s2 += sys_.w[i].squaredNorm() * hot_[i].R * hot_[i].R;
       quiet_checks_[i] = rest_.quiet(quiet_checks_[i], s2);
-      fz_disp2_[i] = (hot_[i].x - x_check_[i]).squaredNorm();
+      fz_step_[i] = hot_[i].x - x_check_[i];
       x_check_[i] = hot_[i].x;
     }
     for (const auto& e : we_)
@@ -2234,8 +2233,6 @@ class HybridEngine final : public edm::EdmCore<D, CalendarQueue, HybridEngine<D>
           fz_tmix_[i].setZero();
         }
         fz_scale_[i] = 0.0;  // first the sum of its contact stiffnesses
-        fz_overlap_[i] = 0.0;
-        fz_contacts_[i] = 0;
       }
     }
     if (!any) return;
@@ -2245,8 +2242,15 @@ class HybridEngine final : public edm::EdmCore<D, CalendarQueue, HybridEngine<D>
       if (!e.touch) {  // settled: a contact about to form keeps both ends awake
         Vec<D> dx = hot_[e.i].x - hot_[e.j].x;
         min_image(dx);
-        const double r = dx.norm(), gap = r - hot_[e.i].R - hot_[e.j].R;
-        if (gap > 0.0 && RestRule::closing(gap, (hot_[e.i].v - hot_[e.j].v).dot(dx) / r, rest_time_))
+        const double r = dx.norm(), sig = hot_[e.i].R + hot_[e.j].R, gap = r - sig;
+        if (!(gap > 0.0)) return;
+        // The gap at the last check: a soft end has moved by its step since (every soft grain
+        // was checked then; a sleeper or fixed grain has not moved).
+        Vec<D> before = dx;
+        if (mode_[e.i] == kSoft) before -= fz_step_[e.i];
+        if (mode_[e.j] == kSoft) before += fz_step_[e.j];
+        if (RestRule::closing(gap, (hot_[e.i].v - hot_[e.j].v).dot(dx) / r, rest_time_) ||
+            RestRule::closing_trend(gap, before.norm() - sig))
           fz_cand_[e.i] = fz_cand_[e.j] = 0;
         return;
       }
@@ -2256,8 +2260,6 @@ class HybridEngine final : public edm::EdmCore<D, CalendarQueue, HybridEngine<D>
         if (!fz_cand_[k]) continue;
         add_share(fz_base_, fz_tbase_, k, e, sf, 1.0);
         fz_scale_[k] += k_n;
-        fz_overlap_[k] += std::max(sf.delta, 0.0);
-        ++fz_contacts_[k];
       }
     });
     for (const auto& e : we_) {
@@ -2266,8 +2268,6 @@ class HybridEngine final : public edm::EdmCore<D, CalendarQueue, HybridEngine<D>
       fz_base_[e.i] += sf.f;
       if (rot_) fz_tbase_[e.i] += sf.ti;
       fz_scale_[e.i] += normal_stiffness(ctab_[e.c], sf.delta);
-      fz_overlap_[e.i] += std::max(sf.delta, 0.0);
-      ++fz_contacts_[e.i];
     }
     // 2. Candidates in equilibrium fall asleep.
     std::size_t keep = 0;
@@ -2279,8 +2279,7 @@ class HybridEngine final : public edm::EdmCore<D, CalendarQueue, HybridEngine<D>
         const double m = mass(i);
         // Wake threshold W (engine/hybrid/rest.hpp) from the sum of its contact stiffnesses.
         fz_scale_[i] = rest_.wake_threshold(m, fz_scale_[i]);
-        const double overlap = fz_contacts_[i] > 0 ? fz_overlap_[i] / fz_contacts_[i] : 0.0;
-        if (RestRule::balanced(fz_base_[i], m, g_, fz_scale_[i]) && RestRule::settled(fz_disp2_[i], overlap, quiet_checks_[i])) {
+        if (RestRule::balanced(fz_base_[i], m, g_, fz_scale_[i])) {
           freeze(i);
           fz_cand_[i] = 1;  // now: fell asleep at this check
           fresh_.push_back(i);
@@ -2631,11 +2630,10 @@ class HybridEngine final : public edm::EdmCore<D, CalendarQueue, HybridEngine<D>
   std::vector<int> sg_start_, sg_items_, sg_cell_, sg_part_, sg_fill_;
   std::vector<std::uint64_t> moved_, moved_w_;
   std::vector<double> fz_scale_;
-  // The rest rule's creep test: each soft grain's position at the last check, and a candidate's
-  // displacement since, summed overlap and contact count (scratch of one check).
+  // The rest rule's gap trend: each soft grain's position at its last check (or join), and its
+  // move since (scratch of one check, freeze_quiet).
   std::vector<Vec<D>> x_check_;
-  std::vector<double> fz_overlap_, fz_disp2_;
-  std::vector<int> fz_contacts_;
+  std::vector<Vec<D>> fz_step_;
   std::vector<int> watched_;
   std::vector<std::uint8_t> fz_cand_, fz_lost_, watch_flag_;
   // Threads (threads_for): the count asked for; the force loop's row ranges, particle owners and

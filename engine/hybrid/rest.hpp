@@ -6,12 +6,12 @@
 //  * W = rest_speed sqrt(m k), k the sum of its contacts' normal stiffnesses: a load change below W
 //    stores less elastic energy, W^2/(2k), than the kinetic energy of a grain at rest_speed,
 //    m rest_speed^2/2 (motion the rule counts as rest);
-//  * not creeping: it moved by at most kCreep (1/20) of its contacts' mean overlap since the last
-//    check, or it has been quiet for kCreepChecks more checks (a bed goes on compacting at speeds
-//    below any rest_speed worth having, closing contacts as it does: TDM's pour gains 1.2 % of
-//    its contacts between 0.75 s and 1.5 s);
 //  * settled: no neighbour it does not touch closes the gap to it within the rest time at their
-//    present closing speed (a contact about to form; asleep, the pair could not close it);
+//    present closing speed, nor within kTrendChecks check intervals at the rate the gap closed
+//    since the last check (a contact about to form; asleep, the pair could not close it). The
+//    second form sees a bed that goes on compacting at speeds below any rest_speed worth having,
+//    closing contacts as it does (TDM's pour gains 1.2 % of its contacts between 0.75 s and
+//    1.5 s), where a grain's speed at one moment is mostly its vibration;
 //  * a sleeper wakes when its elastic load from awake neighbours moves by more than W (loaded),
 //    when a touching grain approaches it faster than rest_speed (approached), or when one of its
 //    contacts opens.
@@ -41,17 +41,13 @@ struct RestRule {
   static bool loaded(const V& dev, double W) {
     return dev.squaredNorm() > W * W;
   }
-  static constexpr double kCreep = 0.05;
-  static constexpr int kCreepChecks = 12;
-  // Whether a grain that moved by sqrt(disp2) since the last check, with contacts of mean overlap
-  // `overlap`, has stopped creeping; a grain quiet for `checks` checks creeps for at most
-  // kCreepChecks of them (three rest times; lightly loaded grains, whose overlaps are tiny, would
-  // otherwise never sleep).
-  static bool settled(double disp2, double overlap, int checks) {
-    return disp2 <= kCreep * kCreep * overlap * overlap || checks >= kQuietChecks + kCreepChecks;
-  }
   // Whether a gap (> 0) closing at normal relative velocity un (< 0: closing) closes within time.
   static bool closing(double gap, double un, double time) { return un < 0.0 && gap < -un * time; }
+  // Whether a gap (> 0) that was `before` at the last check closes within kTrendChecks more
+  // check intervals at the rate it closed over the last one (the pour: README "Hybrid dynamics",
+  // rest).
+  static constexpr int kTrendChecks = 16;
+  static bool closing_trend(double gap, double before) { return gap < before && gap < (before - gap) * kTrendChecks; }
   // Whether a touching grain approaching at normal relative velocity un (< 0: approaching) is
   // faster than rest_speed.
   bool approached(double un) const { return un < 0.0 && un * un > rest_speed2; }

@@ -334,22 +334,23 @@ TEST(RestRule, QuietChecksBalanceLoadAndApproach) {
   EXPECT_FALSE(r.approached(0.02));  // receding
 }
 
-TEST(RestRule, AGrainStillCreepingOrAboutToCloseAContactStaysAwake) {
-  // Creep: a grain with contacts of mean overlap 2e-5 m that moved 2e-6 m since the last check
-  // (1/10 of it) is still compacting the bed; 5e-7 m (1/40) is at rest. After kCreepChecks more
-  // quiet checks it sleeps whatever it does (a lightly loaded grain's overlap is tiny).
-  const double ov = 2e-5;
-  EXPECT_FALSE(RestRule::settled(2e-6 * 2e-6, ov, RestRule::kQuietChecks));
-  EXPECT_TRUE(RestRule::settled(5e-7 * 5e-7, ov, RestRule::kQuietChecks));
-  EXPECT_TRUE(RestRule::settled(std::pow(RestRule::kCreep * ov, 2), ov, RestRule::kQuietChecks));
-  EXPECT_FALSE(RestRule::settled(2e-6 * 2e-6, ov, RestRule::kQuietChecks + RestRule::kCreepChecks - 1));
-  EXPECT_TRUE(RestRule::settled(2e-6 * 2e-6, ov, RestRule::kQuietChecks + RestRule::kCreepChecks));
+TEST(RestRule, AGrainAboutToCloseAContactStaysAwake) {
   // A gap of 1e-5 m closing at 1 mm/s closes in 10 ms: within a rest time of 20 ms, not of 5 ms;
   // a receding or still neighbour never does.
   EXPECT_TRUE(RestRule::closing(1e-5, -1e-3, 0.02));
   EXPECT_FALSE(RestRule::closing(1e-5, -1e-3, 0.005));
   EXPECT_FALSE(RestRule::closing(1e-5, 1e-3, 1.0));
   EXPECT_FALSE(RestRule::closing(1e-5, 0.0, 1.0));
+  // The trend over the last check interval: a gap that shrank from 1.5e-6 m to 1e-6 m closes
+  // within two more intervals at that rate, within kTrendChecks; one that shrank from
+  // 1.05e-6 m by 5e-8 m needs twenty; one that widened or stayed never closes.
+  static_assert(RestRule::kTrendChecks >= 2 && RestRule::kTrendChecks < 20);
+  EXPECT_TRUE(RestRule::closing_trend(1e-6, 1.5e-6));
+  EXPECT_FALSE(RestRule::closing_trend(1e-6, 1.05e-6));
+  EXPECT_TRUE(RestRule::closing_trend(1e-6, 1e-6 + 1e-6 / RestRule::kTrendChecks * 1.01));
+  EXPECT_FALSE(RestRule::closing_trend(1e-6, 1e-6 + 1e-6 / RestRule::kTrendChecks * 0.99));
+  EXPECT_FALSE(RestRule::closing_trend(1e-6, 0.9e-6));
+  EXPECT_FALSE(RestRule::closing_trend(1e-6, 1e-6));
 }
 
 // The crossover can move during a run (hybrid.cost_ratio = "measured"): a smoothed interval of

@@ -2216,6 +2216,7 @@ class HybridEngine final : public edm::EdmCore<D, CalendarQueue, HybridEngine<D>
       if (rot_) s2 += sys_.w[i].squaredNorm() * hot_[i].R * hot_[i].R;
       quiet_checks_[i] = rest_.quiet(quiet_checks_[i], s2);
       fz_step_[i] = hot_[i].x - x_check_[i];
+      min_image(fz_step_[i]);  // (a grain that crossed a periodic face since)
       x_check_[i] = hot_[i].x;
     }
     for (const auto& e : we_)

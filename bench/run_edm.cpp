@@ -5,10 +5,11 @@
 //
 //   matep_bench_edm                  full table (N = 4k, 32k, 256k, 1M; a few minutes)
 //   matep_bench_edm --quick          N = 4k and 32k only
-//   matep_bench_edm --one N RHO QUEUE COLLISIONS_PER_PARTICLE [SHELL [ORDER]]   one measurement
+//   matep_bench_edm --one N RHO QUEUE COLLISIONS_PER_PARTICLE [SHELL [ORDER [RESORT]]]   one measurement
 //                    (internal; SHELL > 0: neighbour lists with shells of that size in diameters,
-//                    else cells; ORDER: the particles' storage order, lattice (default), shuffled
-//                    or morton)
+//                    else cells; ORDER: the particles' storage order at the start, lattice (default),
+//                    shuffled or morton; RESORT: run.resort, auto (default), off, or the particle
+//                    events per particle between two re-sorts)
 #include <fmt/format.h>
 #include <sys/resource.h>
 #include <unistd.h>
@@ -92,7 +93,8 @@ struct Timer final : Observer<3> {
   }
 };
 
-int one(int n_side, double rho, const std::string& queue, double cpp, double shell, const std::string& order) {
+int one(int n_side, double rho, const std::string& queue, double cpp, double shell, const std::string& order,
+        double resort) {
   const long rss0 = current_rss_kb();
   System<3> sys = lattice(n_side, rho, 1, order);
   const double N = static_cast<double>(sys.size());
@@ -106,6 +108,7 @@ int one(int n_side, double rho, const std::string& queue, double cpp, double she
     set.lists = true;
     set.shell = shell;
   }
+  set.resort = resort;
   const double t_eq = 3.0 / omega;
   set.end_time = t_eq + cpp / omega;
   set.thermo_interval = t_eq;
@@ -150,13 +153,16 @@ Row measure(const std::string& self, int n_side, double rho, const std::string& 
 
 int main(int argc, char** argv) {
   std::vector<std::string> a(argv + 1, argv + argc);
-  if (a.size() >= 5 && a.size() <= 7 && a[0] == "--one") {
-    const std::string order = a.size() == 7 ? a[6] : "lattice";
+  if (a.size() >= 5 && a.size() <= 8 && a[0] == "--one") {
+    const std::string order = a.size() >= 7 ? a[6] : "lattice";
+    const std::string rs = a.size() == 8 ? a[7] : "auto";
+    const double resort = rs == "auto" ? -1.0 : rs == "off" ? 0.0 : std::stod(rs);
     if (order != "lattice" && order != "shuffled" && order != "morton") {
       std::fprintf(stderr, "matep_bench_edm: ORDER must be lattice, shuffled or morton, not \"%s\"\n", order.c_str());
       return 2;
     }
-    return one(std::stoi(a[1]), std::stod(a[2]), a[3], std::stod(a[4]), a.size() >= 6 ? std::stod(a[5]) : 0.0, order);
+    return one(std::stoi(a[1]), std::stod(a[2]), a[3], std::stod(a[4]), a.size() >= 6 ? std::stod(a[5]) : 0.0, order,
+               resort);
   }
   const bool quick = !a.empty() && a[0] == "--quick";
   const std::string self = "/proc/self/exe";

@@ -32,6 +32,14 @@ class IdMap {
   explicit IdMap(std::vector<std::uint32_t> user) : user_(std::move(user)) {}
   std::uint64_t user(std::uint64_t k) const { return k < user_.size() ? user_[k] : k; }
   bool identity() const { return user_.empty(); }
+  // The engine has permuted its n indices (index k now holds what index from[k] held): the map
+  // follows (engine/edm/core.hpp "re-sorting").
+  void permute(const std::vector<std::uint32_t>& from) {
+    std::vector<std::uint32_t> u(from.size());
+    for (std::size_t k = 0; k < from.size(); ++k) u[k] = static_cast<std::uint32_t>(user(from[k]));
+    user_ = std::move(u);
+  }
+  std::vector<std::uint32_t>& entries() { return user_; }  // checkpoints
 
  private:
   std::vector<std::uint32_t> user_;

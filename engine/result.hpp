@@ -101,6 +101,7 @@ struct RunResult {
   double time = 0.0;          // simulated time reached
   EventCounts counts;
   bool lists = false;         // EDM: pair candidates from neighbour lists (counts.cell: shell exits)
+  std::uint64_t resorts = 0;  // EDM: times the particles' storage was re-sorted in space (EdmSettings::resort)
   double wall_seconds = 0.0;
   double max_overlap = 0.0;           // EDM: largest overlap at the end; TDM: largest seen during the run
   double max_overlap_relative = 0.0;  // the same divided by the pair's contact distance

@@ -180,6 +180,10 @@ struct EdmSettings {
   bool lists = false;
   bool lists_auto = false;
   double shell = 0.125;
+  // Re-sorting (engine/edm/core.hpp): the particles' storage put in space order (the cells' Z
+  // order) at the start and again every `resort` particle events per particle; 0 = never; < 0 =
+  // where engine/edm/neighbours.hpp resort_pays says so. Pure EDM only.
+  double resort = -1.0;
   // When set and it turns true (a signal handler may set it), the run stops between two events
   // with status "interrupted": the state is that after the last event handled.
   const std::atomic<bool>* stop = nullptr;

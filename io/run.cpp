@@ -39,6 +39,7 @@ EdmSettings edm_settings(const Scene& s) {
   e.lists = s.neighbours == "lists";
   e.lists_auto = s.neighbours == "auto";
   e.shell = s.shell;
+  e.resort = s.resort;
   e.stop = &stop_flag();
   return e;
 }

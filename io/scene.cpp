@@ -1147,7 +1147,7 @@ Scene build_scene(toml::table& root, const std::string& file, const fs::path& ba
       run.fail(gone, "is no longer a key: the collapse watch judges a particle's collision intervals against "
                      "its own recent ones, set by run.collapse_decades (README \"Inelastic collapse\")");
   run.allow({"dimension", "method", "start_time", "end_time", "seed", "gravity", "queue", "tc", "collapse_decades",
-             "max_events", "dt", "threads", "neighbours", "shell"});
+             "max_events", "dt", "threads", "neighbours", "shell", "resort"});
   const std::int64_t dim = run.integer("dimension");
   if (dim != 2 && dim != 3) run.fail("dimension", "must be 2 or 3", run.need("dimension"));
   scene.dimension = static_cast<int>(dim);
@@ -1166,6 +1166,14 @@ Scene build_scene(toml::table& root, const std::string& file, const fs::path& ba
   // Read and checked whatever run.method is; used by pure EDM only (the hybrid keeps its cells).
   scene.neighbours = run.string_opt("neighbours", {"cells", "lists", "auto"}).value_or("cells");
   scene.shell = run.number_or("shell", EdmSettings{}.shell, Range{1e-3, 2.0});
+  // resort: "auto", "off", or the particle events per particle between two re-sorts.
+  if (const toml::node* r = run.find("resort"); r && r->is_string()) {
+    const std::string v = r->as_string()->get();
+    if (v != "auto" && v != "off") run.fail("resort", "expected a number > 0, \"auto\" or \"off\"", *r);
+    scene.resort = v == "off" ? 0.0 : -1.0;
+  } else {
+    scene.resort = run.number_opt("resort", kPositive).value_or(-1.0);
+  }
   scene.dt = run.number_opt("dt", kPositive);
   if (const auto th = run.integer_opt("threads", Range{1.0, 1048576.0})) scene.threads = static_cast<int>(*th);
 

@@ -58,6 +58,7 @@ struct Scene {
   double collapse_decades = EdmSettings{}.collapse_decades;  // run.collapse_decades (the engine's default)
   std::string neighbours = "cells";  // run.neighbours: "cells" | "lists" | "auto" (EDM pair candidates)
   double shell = EdmSettings{}.shell;  // run.shell: the shells' half-width in largest diameters
+  double resort = EdmSettings{}.resort;  // run.resort: < 0 "auto", 0 "off", else particle events per particle between re-sorts
   std::uint64_t max_events = 0;   // run.max_events; 0 = unlimited
   std::optional<double> dt;       // run.dt (soft-sphere time step, > 0); unset = engine's choice
   std::optional<int> threads;     // run.threads (soft-sphere, >= 1); unset = engine's choice

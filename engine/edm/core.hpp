@@ -22,9 +22,12 @@
 #include <chrono>
 #include <cmath>
 #include <functional>
+#include <limits>
 #include <optional>
 #include <stdexcept>
+#include <type_traits>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "contact/fixed.hpp"
@@ -111,13 +114,19 @@ class EdmCore {
   // Whether the core may find pair candidates from per-particle neighbour lists (EdmSettings::
   // lists); an extension that walks the cells by current position (the hybrid) keeps the cells.
   bool ext_lists() const { return true; }
+  // Whether the core may re-sort the particles' storage (EdmSettings::resort); an extension that
+  // keeps state by particle index of its own (the hybrid) says no.
+  bool ext_resort() const { return true; }
   // Whether the run may stop now on a stop request (an extension a step ahead says no; it must
   // then be ready at a later poll).
   bool ext_can_stop() const { return true; }
 
   // The scene's id of each particle, when the engine runs its grains in another order
   // (engine/renumber.hpp): the messages name grains by it.
-  void set_ids(IdMap ids) { ids_ = std::move(ids); }
+  void set_ids(IdMap ids) { *ids_ = std::move(ids); }
+  // The map the run reports through (its observers wrapped in UserIds over it, its result mapped by
+  // to_user), which the core keeps up to date when it re-sorts the particles (EdmSettings::resort).
+  void track_ids(IdMap* ids) { ids_ = ids; }
 
   // Registers a system event; its id is the returned value (valid once init has run).
   int add_system_event(const char* name, std::function<bool(double)> fire) {
@@ -221,6 +230,8 @@ class EdmCore {
       build_cells(2.0 * rmax, margin);
     }
     derived().ext_cells_ready(rmax);
+    const double every = derived().ext_resort() ? resort_interval(set_.resort, static_cast<std::size_t>(N0_)) : 0.0;
+    resort_step_ = every > 0.0 ? std::max<std::uint64_t>(1, static_cast<std::uint64_t>(every * N0_)) : 0;
   }
 
   // The moving grains' volume over the domain's (what "auto" neighbours judge by).
@@ -261,6 +272,7 @@ class EdmCore {
       StateReader r(*set_.checkpoint->resume);
       derived().archive(r);
       if (!r.done()) throw StateError("the engine state is longer than this scene's (a checkpoint of another scene)");
+      if (resort_step_) resort_at_ = (processed_ / resort_step_ + 1) * resort_step_;  // as the saved run had it
       // The end (popped when the state was saved at it), and the recurring events a longer run
       // still has due.
       queue_->set(end_id_, set_.end_time);
@@ -285,6 +297,7 @@ class EdmCore {
     RunResult<D> res;
     std::uint64_t polls = 0;
     while (!queue_->empty()) {
+      if (resort_step_ && processed_ >= resort_at_) resort();
       // A stop request (a signal): leave before the next event, with the state after the last
       // (saved first when the run keeps checkpoints).
       if ((++polls & 0x3ff) == 0 && set_.stop && set_.stop->load(std::memory_order_relaxed) &&
@@ -329,6 +342,7 @@ class EdmCore {
     if (snapshots_ && t_end > last_snapshot_time_) emit_snapshot(t_end);
 
     res.lists = lists_;
+    res.resorts = resorts_;
     res.status = status_.empty() ? "ok" : status_;
     res.message = message_;
     res.time = t_end;
@@ -423,6 +437,9 @@ class EdmCore {
       a(nb_sh_);
       a.same(nb_n_, "particle slots");
     }
+    a.tag("edm.order");
+    a(ids_->entries());
+    a(resorts_);
     a.tag("edm.flows");
     a(removed_);
     a(absent_);
@@ -580,6 +597,107 @@ class EdmCore {
         if (j != i) f(j, shift);
       });
     });
+  }
+
+  // ---- re-sorting (EdmSettings::resort) ----------------------------------------------------------
+  // The particles' storage in the Z (Morton) order of their cells (engine/edm/neighbours.hpp
+  // morton_key), so that the records an event reads, its particle's and its candidates', lie near
+  // one another in memory however the grains have mixed. Every record moves with all that names
+  // it: the predictions' partners, the neighbour lists, the cells, the queue, the contacts' tally
+  // and the map to the scene's ids (IdMap::permute), so that what the run reports is unchanged
+  // but for the order in which events due at exactly the same time pop (the queue breaks such
+  // ties by index). Particles keep their own times: nothing is advanced. Absent slots go last in
+  // their order (an inlet's unfilled slots stay where it fills them, next_id_ onwards).
+  void resort() {
+    resort_at_ = (processed_ / resort_step_ + 1) * resort_step_;
+    const std::size_t n = static_cast<std::size_t>(N_);
+    // The new order: by key, then by index; from[k] is the particle that becomes k, to its inverse.
+    std::vector<std::uint32_t> from(n), to(n);
+    {
+      std::array<int, D> lo;
+      lo.fill(std::numeric_limits<int>::max());
+      for (int i = 0; i < N_; ++i)
+        if (!is_removed(i))
+          for (int k = 0; k < D; ++k) lo[k] = std::min(lo[k], cold_[i].cell[k]);
+      std::vector<std::pair<std::uint64_t, std::uint32_t>> key(n);
+      for (int i = 0; i < N_; ++i) {
+        std::array<std::uint32_t, D> c{};
+        for (int k = 0; k < D; ++k) c[k] = static_cast<std::uint32_t>(cold_[i].cell[k] - lo[k]);
+        key[i] = {is_removed(i) ? std::numeric_limits<std::uint64_t>::max() : morton_key<D>(c), ui(i)};
+      }
+      std::sort(key.begin(), key.end());
+      for (std::size_t k = 0; k < n; ++k) from[k] = key[k].second;
+    }
+    bool same = true;
+    for (std::size_t k = 0; k < n; ++k) {
+      to[from[k]] = static_cast<std::uint32_t>(k);
+      same = same && from[k] == k;
+    }
+    if (same) return;
+    ++resorts_;
+    // Each array permuted in place along the permutation's cycles (rows of `width` elements): no
+    // array is copied (peak memory).
+    std::vector<bool> done;
+    const auto permute = [&](auto& a, std::size_t width = 1) {
+      if (width == 0 || a.size() != n * width) return;  // an optional array that is empty
+      done.assign(n, false);
+      std::vector<std::decay_t<decltype(a[0])>> row(width);
+      for (std::size_t s = 0; s < n; ++s) {
+        if (done[s]) continue;
+        std::copy_n(a.begin() + static_cast<std::ptrdiff_t>(s * width), width, row.begin());
+        std::size_t k = s;
+        for (;;) {
+          done[k] = true;
+          const std::size_t j = from[k];
+          auto dst = a.begin() + static_cast<std::ptrdiff_t>(k * width);
+          if (j == s) {
+            std::copy_n(row.begin(), width, dst);
+            break;
+          }
+          std::copy_n(a.begin() + static_cast<std::ptrdiff_t>(j * width), width, dst);
+          k = j;
+        }
+      }
+    };
+    permute(hot_);
+    permute(cold_);
+    for (Cold& c : cold_)
+      if (c.type == kPair && c.partner >= 0) c.partner = static_cast<int>(to[static_cast<std::size_t>(c.partner)]);
+    permute(fixed_);
+    permute(removed_);
+    permute(sys_.w);
+    if (lists_) {
+      const std::size_t cap = static_cast<std::size_t>(nb_cap_);
+      permute(shell_c_);
+      permute(nb_, cap);
+      permute(nb_sh_, cap);
+      permute(nb_n_);
+      for (std::size_t k = 0; k < n; ++k)
+        for (std::size_t m = 0; m < nb_n_[k]; ++m) {
+          int& j = nb_[k * cap + m];
+          j = static_cast<int>(to[static_cast<std::size_t>(j)]);
+        }
+    }
+    // The cells again, each particle in the cell it was in (its position's, or its shell's centre's).
+    std::fill(head_.begin(), head_.end(), CellHead{});
+    std::fill(next_.begin(), next_.end(), -1);
+    for (int i = 0; i < N_; ++i)
+      if (!is_removed(i)) cell_insert(i);
+    // The queue again, the particles' entries under their new indices.
+    {
+      std::vector<double> due(n, std::numeric_limits<double>::quiet_NaN());
+      for (int i = 0; i < N_; ++i)
+        if (queue_->contains(i)) due[static_cast<std::size_t>(i)] = queue_->time_of(i);
+      std::vector<QueueEntry> sys;
+      for (int id = N_; id < N_ + static_cast<int>(system_.size()); ++id)
+        if (queue_->contains(id)) sys.push_back({id, queue_->time_of(id)});
+      queue_->clear();
+      for (std::size_t k = 0; k < n; ++k)
+        if (const double t = due[from[k]]; t == t) queue_->set(static_cast<int>(k), t);
+      for (const QueueEntry& e : sys) queue_->set(e.id, e.t);
+    }
+    impulses_.renumber(to);
+    ids_->permute(from);
   }
 
   // ---- neighbour lists (EdmSettings::lists) -----------------------------------------------------
@@ -959,7 +1077,7 @@ class EdmCore {
           "inelastic collapse: the collisions of particle {} came ever faster, its smoothed interval "
           "falling {:.1f} decades (from {:.3g} s to {:.3g} s) at t = {:.17g}; set run.tc > 0 (TC model) "
           "to make such collisions elastic, or use method = \"hybrid\"",
-          ids_.user(static_cast<std::uint64_t>(i)), CollapseWatch::decades(c.watch.high - c.watch.fast),
+          ids_->user(static_cast<std::uint64_t>(i)), CollapseWatch::decades(c.watch.high - c.watch.fast),
           c.watch.high_seconds(), c.watch.fast_seconds(), now_);
     }
     c.last = now_;
@@ -974,7 +1092,7 @@ class EdmCore {
         remove_particle(i, t, o);
       else {
         status_ = "escaped";
-        message_ = escape_message(ids_.user(static_cast<std::uint64_t>(i)), k, t, hot_[i].x[k]);
+        message_ = escape_message(ids_->user(static_cast<std::uint64_t>(i)), k, t, hot_[i].x[k]);
       }
       return false;
     }
@@ -1536,7 +1654,11 @@ class EdmCore {
   double virial_ = 0.0;
   double prev_ke_ = -1.0;
   std::string status_, message_;
-  IdMap ids_;  // the scene's ids (set_ids; empty: the engine's order is the scene's)
+  IdMap own_ids_;
+  IdMap* ids_ = &own_ids_;  // the scene's ids (set_ids, track_ids; empty: the engine's order is the scene's)
+  std::uint64_t resort_step_ = 0;  // particle events between two re-sorts (0: never)
+  std::uint64_t resort_at_ = 0;    // the next re-sort when processed_ reaches it
+  std::uint64_t resorts_ = 0;
 
   std::vector<SystemEvent> system_;  // ids N_, N_ + 1, ...
   int sample_id_ = -1, end_id_ = -1, snapshot_id_ = -1, checkpoint_id_ = -1;

@@ -1,7 +1,12 @@
 // Pure event-driven dynamics: the EDM core (engine/edm/core.hpp) with no extension.
 #include "engine/edm.hpp"
 
+#include <memory>
+#include <vector>
+
 #include "engine/edm/core.hpp"
+#include "engine/edm/neighbours.hpp"
+#include "engine/renumber.hpp"
 #include "scheduler/calendar_queue.hpp"
 #include "scheduler/heap_queue.hpp"
 
@@ -13,19 +18,41 @@ template <int D, class Queue>
 class EdmEngine final : public edm::EdmCore<D, Queue, EdmEngine<D, Queue>> {
  public:
   EdmEngine(System<D>&& system, const EdmSettings& set, const std::vector<Observer<D>*>& obs,
-            const RoughRules* rough)
+            const RoughRules* rough, IdMap* ids = nullptr)
       : edm::EdmCore<D, Queue, EdmEngine>(std::move(system), set, obs) {
+    if (ids) this->track_ids(ids);
     this->init(rough);
   }
 };
+
+template <int D, class Queue>
+RunResult<D> run_queue(System<D>&& system, const EdmSettings& settings, const std::vector<Observer<D>*>& observers,
+                       const RoughRules* rough) {
+  if (edm::resort_interval(settings.resort, system.size()) <= 0.0)
+    return EdmEngine<D, Queue>(std::move(system), settings, observers, rough).run();
+  // A run that re-sorts its particles (engine/edm/core.hpp "re-sorting") reports through a map to
+  // the scene's ids that the engine keeps up to date.
+  IdMap ids;
+  std::vector<std::unique_ptr<UserIds<D>>> wrapped;
+  std::vector<Observer<D>*> obs;
+  for (Observer<D>* o : observers) {
+    if (!o) continue;
+    wrapped.push_back(std::make_unique<UserIds<D>>(*o, ids));
+    obs.push_back(wrapped.back().get());
+  }
+  EdmEngine<D, Queue> engine(std::move(system), settings, obs, rough, &ids);
+  RunResult<D> r = engine.run();
+  to_user(r, ids);
+  return r;
+}
 
 }  // namespace
 
 template <int D>
 RunResult<D> run_edm(System<D> system, const EdmSettings& settings, QueueKind queue,
                      const std::vector<Observer<D>*>& observers, const RoughRules* rough) {
-  if (queue == QueueKind::Heap) return EdmEngine<D, HeapQueue>(std::move(system), settings, observers, rough).run();
-  return EdmEngine<D, CalendarQueue>(std::move(system), settings, observers, rough).run();
+  if (queue == QueueKind::Heap) return run_queue<D, HeapQueue>(std::move(system), settings, observers, rough);
+  return run_queue<D, CalendarQueue>(std::move(system), settings, observers, rough);
 }
 
 template RunResult<2> run_edm<2>(System<2>, const EdmSettings&, QueueKind, const std::vector<Observer<2>*>&,

@@ -154,6 +154,7 @@ class HybridEngine final : public edm::EdmCore<D, CalendarQueue, HybridEngine<D>
   // ---- hooks of the EDM core ----
   void ext_setup() { hybrid_setup(given_settings_, given_plan_); }
   bool ext_lists() const { return false; }  // capture and the soft lists walk the cells by position
+  bool ext_resort() const { return false; }  // its own state by index (the soft set's lists, springs, rules)
   // The soft set is at the run's time: not a step ahead (predrifted_), not behind (coasting).
   bool ext_can_stop() const { return !predrifted_ && !coasting(); }
   // The EDM cells reach every grain a capture may need (the largest capture distance), not the
@@ -1316,10 +1317,10 @@ class HybridEngine final : public edm::EdmCore<D, CalendarQueue, HybridEngine<D>
       } else if (!(h.x[k] >= lo_[k] - h.R && h.x[k] <= hi_[k] + h.R) && status_.empty()) {
         status_ = std::isfinite(h.x[k]) ? "escaped" : "unstable";
         message_ = std::isfinite(h.x[k])
-                       ? escape_message(this->ids_.user(static_cast<std::uint64_t>(i)), k, t, h.x[k])
+                       ? escape_message(this->ids_->user(static_cast<std::uint64_t>(i)), k, t, h.x[k])
                        : fmt::format("particle {} reached a non-finite position at t = {:.17g}: the substep {} is "
                                      "too long for the contacts (stability limit {:.6g})",
-                                     this->ids_.user(static_cast<std::uint64_t>(i)), t, h_, plan_.max_stable_dt);
+                                     this->ids_->user(static_cast<std::uint64_t>(i)), t, h_, plan_.max_stable_dt);
       }
       c[k] = std::isfinite(h.x[k]) ? grid_.coord(k, h.x[k]) : 0;
       const double cw = grid_.width(k);

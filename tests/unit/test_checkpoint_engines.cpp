@@ -3,6 +3,7 @@
 // bit for bit: the same collisions and thermo samples after the checkpoint, the same final state.
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <atomic>
 #include <cstring>
 #include <random>
@@ -155,6 +156,25 @@ TEST(CheckpointEngines, EdmGasResumesBitForBit) {
       return run_edm<3>(sys, s, q, {obs});
     };
     check_resume<3>(run, q == QueueKind::Calendar ? 1 : 2, q == QueueKind::Calendar ? "edm 3D calendar" : "edm 3D heap");
+  }
+}
+
+// A run that re-sorts its particles (EdmSettings::resort) saves their order and the map to the
+// scene's ids; stopped between two re-sorts it continues on the same schedule of re-sorts.
+TEST(CheckpointEngines, EdmReSortedGasResumesBitForBit) {
+  System<3> sys = lattice_gas<3>(6, 0.3, 1.0, 0.9, 11);
+  std::mt19937 rng(3);
+  std::shuffle(sys.x.begin(), sys.x.end(), rng);
+  for (const bool lists : {false, true}) {
+    auto run = [&](const CheckpointHooks* h, std::atomic<bool>* stop, Observer<3>* obs) {
+      EdmSettings s = edm_set(20.0, 0.25);
+      s.resort = 1.5;
+      s.lists = lists;
+      s.checkpoint = h;
+      s.stop = stop;
+      return run_edm<3>(sys, s, QueueKind::Calendar, {obs});
+    };
+    check_resume<3>(run, lists ? 4 : 3, lists ? "edm re-sorted, lists" : "edm re-sorted, cells");
   }
 }
 

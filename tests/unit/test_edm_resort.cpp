@@ -1,0 +1,284 @@
+// Re-sorting the EDM particles' storage in space as a run goes (engine/edm/core.hpp "re-sorting",
+// EdmSettings::resort): the Z-order key, and whole runs re-sorted many times against the same runs
+// never re-sorted. Re-sorting moves each particle's records and renames it in the engine only: the
+// predictions are the same numbers, so the collisions, the inflow and outflow, the snapshots'
+// contacts and the final state must come out the same, in the scene's ids, bit for bit (a pair's
+// collision may be reported from either grain: the queue breaks exact ties by engine index).
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <array>
+#include <cmath>
+#include <cstring>
+#include <random>
+#include <string>
+#include <tuple>
+#include <variant>
+#include <vector>
+
+#include "engine/edm.hpp"
+#include "engine/edm/neighbours.hpp"
+#include "engine/hybrid.hpp"
+#include "io/scene.hpp"
+#include "tests/support/flows.hpp"
+#include "tests/support/scene_errors.hpp"
+#include "tests/support/systems.hpp"
+
+namespace matep {
+namespace {
+
+// The key written out from its definition: bit b of coordinate k goes to bit D b + k.
+template <int D>
+std::uint64_t slow_key(const std::array<std::uint32_t, D>& c) {
+  std::uint64_t key = 0;
+  for (int b = 0; b < 64 / D; ++b)
+    for (int k = 0; k < D; ++k) key |= std::uint64_t((c[k] >> b) & 1u) << (D * b + k);
+  return key;
+}
+
+TEST(EdmResort, TheZOrderKeyInterleavesTheCoordinatesBits) {
+  EXPECT_EQ(edm::morton_key<3>({1, 0, 0}), 1u);
+  EXPECT_EQ(edm::morton_key<3>({0, 1, 0}), 2u);
+  EXPECT_EQ(edm::morton_key<3>({0, 0, 1}), 4u);
+  EXPECT_EQ(edm::morton_key<3>({3, 0, 0}), 9u);
+  EXPECT_EQ(edm::morton_key<2>({0, 3}), 10u);
+  std::mt19937 rng(7);
+  auto bits21 = [&] { return static_cast<std::uint32_t>(rng() & 0x1fffff); };
+  for (int n = 0; n < 1000; ++n) {
+    const std::array<std::uint32_t, 3> c3 = {bits21(), bits21(), bits21()};
+    ASSERT_EQ(edm::morton_key<3>(c3), slow_key<3>(c3)) << c3[0] << " " << c3[1] << " " << c3[2];
+    const std::array<std::uint32_t, 2> c2 = {static_cast<std::uint32_t>(rng()), static_cast<std::uint32_t>(rng())};
+    ASSERT_EQ(edm::morton_key<2>(c2), slow_key<2>(c2)) << c2[0] << " " << c2[1];
+  }
+}
+
+TEST(EdmResort, AutoReSortsLargeRunsOnly) {
+  EXPECT_EQ(edm::resort_interval(-1.0, 100000), 0.0);
+  EXPECT_EQ(edm::resort_interval(-1.0, edm::kResortFrom), edm::kResortEvery);
+  EXPECT_EQ(edm::resort_interval(0.0, 5000000), 0.0);
+  EXPECT_EQ(edm::resort_interval(2.5, 10), 2.5);
+  const System<3> sys = test::lattice_gas<3>(5, 0.3, 1.0, 1.0, 4);
+  EdmSettings s;
+  s.end_time = 1.0;
+  EXPECT_EQ(run_edm<3>(sys, s, QueueKind::Calendar).resorts, 0u);  // "auto" on 125 grains
+}
+
+// Everything a run reports about grains, by the scene's ids.
+template <int D>
+struct Reports final : Observer<D> {
+  std::vector<CollisionRecord<D>> collisions;
+  std::vector<InflowRecord<D>> in;
+  std::vector<OutflowRecord<D>> out;
+  std::vector<Snapshot<D>> snaps;
+  bool wants_collisions() const override { return true; }
+  void on_collision(const CollisionRecord<D>& c) override { collisions.push_back(c); }
+  void on_inflow(const InflowRecord<D>& r) override { in.push_back(r); }
+  void on_outflow(const OutflowRecord<D>& r) override { out.push_back(r); }
+  bool wants_snapshots() const override { return true; }
+  bool wants_contacts() const override { return true; }
+  void on_snapshot(const Snapshot<D>& s) override { snaps.push_back(s); }
+};
+
+template <int D>
+bool same_bits(const std::vector<Vec<D>>& a, const std::vector<Vec<D>>& b) {
+  return a.size() == b.size() && (a.empty() || std::memcmp(a.data(), b.data(), a.size() * sizeof(Vec<D>)) == 0);
+}
+
+// The two runs' reports are the same, bit for bit, a pair's collision from either grain.
+template <int D>
+void expect_same_reports(const Reports<D>& a, const Reports<D>& b) {
+  ASSERT_EQ(a.collisions.size(), b.collisions.size());
+  for (std::size_t k = 0; k < a.collisions.size(); ++k) {
+    const auto& x = a.collisions[k];
+    const auto& y = b.collisions[k];
+    ASSERT_EQ(x.kind, y.kind) << "collision " << k;
+    ASSERT_EQ(x.time, y.time) << "collision " << k;
+    const bool swapped = x.kind == EventKind::PairCollision && x.i == y.j && x.j == y.i && x.i != y.i;
+    ASSERT_TRUE(swapped || (x.i == y.i && x.j == y.j)) << "collision " << k << ": " << x.i << "-" << x.j << " and "
+                                                       << y.i << "-" << y.j;
+    const Vec<D>& vy = swapped ? y.vj_after : y.vi_after;
+    ASSERT_TRUE(x.vi_after == vy) << "collision " << k;
+  }
+  ASSERT_EQ(a.in.size(), b.in.size());
+  for (std::size_t k = 0; k < a.in.size(); ++k) {
+    EXPECT_EQ(a.in[k].id, b.in[k].id);
+    EXPECT_EQ(a.in[k].time, b.in[k].time);
+    EXPECT_TRUE(a.in[k].x == b.in[k].x);
+  }
+  ASSERT_EQ(a.out.size(), b.out.size());
+  for (std::size_t k = 0; k < a.out.size(); ++k) {
+    EXPECT_EQ(a.out[k].id, b.out[k].id);
+    EXPECT_EQ(a.out[k].time, b.out[k].time);
+    EXPECT_TRUE(a.out[k].v == b.out[k].v);
+  }
+  ASSERT_EQ(a.snaps.size(), b.snaps.size());
+  for (std::size_t k = 0; k < a.snaps.size(); ++k) {
+    const Snapshot<D>& p = a.snaps[k];
+    const Snapshot<D>& q = b.snaps[k];
+    EXPECT_EQ(p.id, q.id) << "snapshot " << k;
+    EXPECT_TRUE(same_bits<D>(p.x, q.x)) << "snapshot " << k;
+    EXPECT_TRUE(same_bits<D>(p.v, q.v)) << "snapshot " << k;
+    // The contacts' rows: the same set (their order is the tally's first-seen order, which an
+    // exact tie may change), each with the same mean force.
+    ASSERT_EQ(p.contacts.size(), q.contacts.size()) << "snapshot " << k;
+    auto rows = [](std::vector<ContactRow<D>> c) {
+      std::sort(c.begin(), c.end(), [](const ContactRow<D>& u, const ContactRow<D>& w) {
+        return std::tie(u.i, u.j, u.wall) < std::tie(w.i, w.j, w.wall);
+      });
+      return c;
+    };
+    const auto pr = rows(p.contacts), qr = rows(q.contacts);
+    for (std::size_t m = 0; m < pr.size(); ++m) {
+      EXPECT_EQ(pr[m].i, qr[m].i);
+      EXPECT_EQ(pr[m].j, qr[m].j);
+      EXPECT_EQ(pr[m].collisions, qr[m].collisions);
+      EXPECT_LT((pr[m].fn - qr[m].fn).norm(), 1e-12 * (1.0 + pr[m].fn.norm()));
+    }
+  }
+}
+
+template <int D>
+void expect_same_state(const RunResult<D>& a, const RunResult<D>& b) {
+  EXPECT_EQ(a.status, b.status);
+  EXPECT_EQ(a.id, b.id);
+  EXPECT_TRUE(same_bits<D>(a.x, b.x)) << "final positions differ";
+  EXPECT_TRUE(same_bits<D>(a.v, b.v)) << "final velocities differ";
+  EXPECT_EQ(a.w.size(), b.w.size());
+  EXPECT_TRUE(a.w.empty() || std::memcmp(a.w.data(), b.w.data(), a.w.size() * sizeof(a.w[0])) == 0) << "spins differ";
+  EXPECT_EQ(a.radius, b.radius);
+  EXPECT_EQ(a.counts.pair, b.counts.pair);
+  EXPECT_EQ(a.counts.wall, b.counts.wall);
+}
+
+// A gas whose ids are scattered in space (the positions shuffled), with cells and with lists, in
+// 3D and 2D: re-sorted every half event per particle, the same run.
+template <int D>
+void check_gas(int n_side, double phi, double e, bool lists) {
+  SCOPED_TRACE(::testing::Message() << D << "D, lists " << lists);
+  System<D> sys = test::lattice_gas<D>(n_side, phi, 1.0, e, 3);
+  std::mt19937 rng(9);
+  std::shuffle(sys.x.begin(), sys.x.end(), rng);
+  EdmSettings s;
+  s.end_time = 3.0;
+  s.thermo_interval = 0.5;
+  s.snapshot_interval = 1.0;
+  s.lists = lists;
+  s.resort = 0.0;
+  Reports<D> plain, sorted;
+  const RunResult<D> a = run_edm<D>(sys, s, QueueKind::Calendar, {&plain});
+  s.resort = 0.5;
+  const RunResult<D> b = run_edm<D>(sys, s, QueueKind::Calendar, {&sorted});
+  ASSERT_EQ(a.status, "ok") << a.message;
+  EXPECT_EQ(a.resorts, 0u);
+  // The first re-sort undoes the shuffle; each later one follows the grains' mixing.
+  EXPECT_GT(b.resorts, 10u);
+  EXPECT_GT(plain.collisions.size(), 5000u);
+  expect_same_reports(plain, sorted);
+  expect_same_state(a, b);
+}
+
+TEST(EdmResort, AGasWithScatteredIdsIsTheSameRunReSorted) {
+  check_gas<3>(10, 0.3, 0.95, false);
+  check_gas<3>(10, 0.47, 1.0, true);
+  check_gas<2>(30, 0.5, 0.9, false);
+}
+
+// A hopper of rough grains (spins) fed by an inlet and drained through the floor's orifice:
+// inserted grains, removed grains, wall collisions and gravity, re-sorted every quarter event per
+// particle, against the run never re-sorted.
+TEST(EdmResort, AFedAndDrainedHopperOfRoughGrainsIsTheSameRunReSorted) {
+  const std::string scene = R"([run]
+dimension = 3
+method = "edm"
+end_time = 0.25
+seed = 3
+gravity = [0.0, 0.0, -9.81]
+[domain]
+lower = [0.0, 0.0, -0.03]
+upper = [0.05, 0.05, 0.12]
+[material.glass]
+density = 2500.0
+restitution = 0.95
+friction = 0.3
+[particles.bed]
+material = "glass"
+radius = 0.0025
+count = 60
+region = {lower = [0.0, 0.0, 0.0], upper = [0.05, 0.05, 0.03]}
+[wall.floor]
+type = "plane"
+point = [0.025, 0.025, 0.0]
+normal = [0.0, 0.0, 1.0]
+hole = {shape = "disk", radius = 0.008}
+material = "glass"
+)" + test::bin_walls("0.05", "0.12") + R"([inlet.shower]
+type = "disk"
+point = [0.025, 0.025, 0.1]
+normal = [0.0, 0.0, 1.0]
+radius = 0.02
+material = "glass"
+grain_radius = [0.002, 0.0025]
+rate = 1500
+velocity = [0.0, 0.0, -0.5]
+spread = 0.05
+[outlet.bottom]
+type = "face"
+face = "z-"
+)";
+  const Scene sc = load_scene_string(scene, "hopper.toml", ".", {});
+  const System<3>& sys = std::get<System<3>>(sc.system);
+  EdmSettings s;
+  s.end_time = sc.end_time;
+  s.thermo_interval = 0.01;
+  s.snapshot_interval = 0.05;
+  s.resort = 0.0;
+  Reports<3> plain, sorted;
+  const RunResult<3> a = run_edm<3>(sys, s, QueueKind::Calendar, {&plain});
+  s.resort = 0.25;
+  const RunResult<3> b = run_edm<3>(sys, s, QueueKind::Calendar, {&sorted});
+  ASSERT_EQ(a.status, "ok") << a.message;
+  EXPECT_GT(b.resorts, 20u);
+  EXPECT_GT(plain.in.size(), 200u);
+  EXPECT_GT(plain.out.size(), 20u);
+  ASSERT_FALSE(a.w.empty());
+  std::size_t contacts = 0;
+  for (const auto& sn : plain.snaps) contacts += sn.contacts.size();
+  EXPECT_GT(contacts, 50u);
+  expect_same_reports(plain, sorted);
+  expect_same_state(a, b);
+}
+
+// The hybrid keeps the order it starts in (its soft set's own state is by index): asked to re-sort,
+// it runs exactly as it would otherwise.
+TEST(EdmResort, TheHybridKeepsItsOrder) {
+  System<3> sys = test::lattice_gas<3>(6, 0.3, 1.0, 0.9, 4);
+  sys.materials[0] = test::linear_material("grain", sys.materials[0].density, 1.0e6, 0.9);
+  EdmSettings s;
+  s.end_time = 1.0;
+  s.resort = 0.0;
+  const RunResult<3> a = run_hybrid<3>(sys, s, HybridSettings{}, {});
+  s.resort = 0.5;
+  const RunResult<3> b = run_hybrid<3>(sys, s, HybridSettings{}, {});
+  ASSERT_EQ(a.status, "ok") << a.message;
+  EXPECT_EQ(b.resorts, 0u);
+  expect_same_state(a, b);
+}
+
+TEST(EdmResort, SceneKeys) {
+  const std::string base = "[run]\ndimension = 3\nend_time = 1.0\n";
+  const std::string tail =
+      "[domain]\nlower = [0.0, 0.0, 0.0]\nupper = [1.0, 1.0, 1.0]\n"
+      "[material.m]\ndensity = 1.0\nrestitution = 1.0\n"
+      "[particles.p]\nmaterial = \"m\"\nradius = 0.05\ncount = 10\narrangement = \"random\"\n";
+  auto load = [&](const std::string& line) { return load_scene_string(base + line + tail, "s.toml", ".", {}).resort; };
+  EXPECT_LT(load(""), 0.0);
+  EXPECT_LT(load("resort = \"auto\"\n"), 0.0);
+  EXPECT_EQ(load("resort = \"off\"\n"), 0.0);
+  EXPECT_EQ(load("resort = 12.5\n"), 12.5);
+  test::expect_scene_error(base + "resort = \"often\"\n" + tail, "s.toml", ".", {"run.resort", "often"});
+  test::expect_scene_error(base + "resort = 0\n" + tail, "s.toml", ".", {"run.resort", "0"});
+  test::expect_scene_error(base + "resort = -3.0\n" + tail, "s.toml", ".", {"run.resort", "-3"});
+}
+
+}  // namespace
+}  // namespace matep

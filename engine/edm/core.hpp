@@ -230,7 +230,7 @@ class EdmCore {
       build_cells(2.0 * rmax, margin);
     }
     derived().ext_cells_ready(rmax);
-    const double every = derived().ext_resort() ? resort_interval(set_.resort, static_cast<std::size_t>(N0_)) : 0.0;
+    const double every = derived().ext_resort() ? resort_interval(set_.resort, static_cast<std::size_t>(N0_), moving_packing()) : 0.0;
     resort_step_ = every > 0.0 ? std::max<std::uint64_t>(1, static_cast<std::uint64_t>(every * N0_)) : 0;
   }
 

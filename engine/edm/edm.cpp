@@ -28,10 +28,11 @@ class EdmEngine final : public edm::EdmCore<D, Queue, EdmEngine<D, Queue>> {
 template <int D, class Queue>
 RunResult<D> run_queue(System<D>&& system, const EdmSettings& settings, const std::vector<Observer<D>*>& observers,
                        const RoughRules* rough) {
-  if (edm::resort_interval(settings.resort, system.size()) <= 0.0)
+  // A run that may re-sort its particles (engine/edm/core.hpp "re-sorting"; the engine decides,
+  // by the grains' packing too) reports through a map to the scene's ids that the engine keeps up
+  // to date.
+  if (edm::resort_interval(settings.resort, system.size(), 0.0) <= 0.0)
     return EdmEngine<D, Queue>(std::move(system), settings, observers, rough).run();
-  // A run that re-sorts its particles (engine/edm/core.hpp "re-sorting") reports through a map to
-  // the scene's ids that the engine keeps up to date.
   IdMap ids;
   std::vector<std::unique_ptr<UserIds<D>>> wrapped;
   std::vector<Observer<D>*> obs;

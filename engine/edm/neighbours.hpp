@@ -20,13 +20,23 @@ inline constexpr double kListsFromPacking = 0.45;
 inline bool lists_pay(double packing, bool gravity) { return !gravity && packing >= kListsFromPacking; }
 
 // Re-sorting the particles' storage in space (engine/edm/core.hpp "re-sorting"): from how many
-// particles "auto" does it, and how often (particle events per particle between two re-sorts).
-// Elastic spheres at rho sigma^3 = 0.5, one core, 40 collisions per particle after the lattice
-// melts (bench/README.md "Re-sorting the EDM storage"): re-sorted every 32, 0.89 x the time per
-// collision of the lattice's rows at N = 1 000 000 (medians of three alternated pairs; 0.88 from a
-// shuffled start); the Z order from the start gained nothing measurable at 262 144 or 32 768.
+// particles, below which packing, and how often (particle events per particle between two
+// re-sorts) "auto" does it. Elastic spheres, one core, 40 collisions per particle after the lattice
+// melts, re-sorted every 32 against the lattice's rows (bench/README.md "Re-sorting the EDM
+// storage", medians of three alternated pairs): at N = 1 000 000, 0.89 x the time per collision at
+// rho sigma^3 = 0.5 (packing 0.26; 0.88 from a shuffled start) but 1.06 x at 0.85 (packing 0.445,
+// where the grains stay near their start); the Z order from the start gained nothing measurable at
+// 262 144 or 32 768.
 inline constexpr int kResortFrom = 500000;
+inline constexpr double kResortBelowPacking = 0.35;
 inline constexpr double kResortEvery = 32.0;
+// The interval "auto" (resort < 0) gives a run of n particles whose moving grains fill `packing`
+// of the domain; 0 = never.
+inline double resort_interval(double resort, std::size_t n, double packing) {
+  if (resort >= 0.0) return resort;
+  return n >= static_cast<std::size_t>(kResortFrom) && packing < kResortBelowPacking ? kResortEvery : 0.0;
+}
+
 // The Z (Morton) order's key of a cell's coordinates (each below 2^21 in 3D, 2^32 in 2D): their
 // bits interleaved, axis 0 lowest, so that cells near in space are mostly near in the order
 // (Morton 1966; the shift-and-mask spreading of each coordinate's bits is the standard one).

@@ -52,11 +52,12 @@ TEST(EdmResort, TheZOrderKeyInterleavesTheCoordinatesBits) {
   }
 }
 
-TEST(EdmResort, AutoReSortsLargeRunsOnly) {
-  EXPECT_EQ(edm::resort_interval(-1.0, 100000), 0.0);
-  EXPECT_EQ(edm::resort_interval(-1.0, edm::kResortFrom), edm::kResortEvery);
-  EXPECT_EQ(edm::resort_interval(0.0, 5000000), 0.0);
-  EXPECT_EQ(edm::resort_interval(2.5, 10), 2.5);
+TEST(EdmResort, AutoReSortsLargeGasesOnly) {
+  EXPECT_EQ(edm::resort_interval(-1.0, 100000, 0.26), 0.0);
+  EXPECT_EQ(edm::resort_interval(-1.0, edm::kResortFrom, 0.26), edm::kResortEvery);
+  EXPECT_EQ(edm::resort_interval(-1.0, 5000000, 0.445), 0.0);  // dense: no gain measured
+  EXPECT_EQ(edm::resort_interval(0.0, 5000000, 0.26), 0.0);
+  EXPECT_EQ(edm::resort_interval(2.5, 10, 0.6), 2.5);
   const System<3> sys = test::lattice_gas<3>(5, 0.3, 1.0, 1.0, 4);
   EdmSettings s;
   s.end_time = 1.0;

@@ -59,23 +59,13 @@ class ImpulseTally {
   bool empty() const { return rows_.empty(); }
 
   // The engine renumbered its grains (grain i is now to[i]): the rows follow, each pair's row
-  // still on its smaller id (swapping the grains turns the impulse on one into that on the other).
+  // still on its smaller id (rename_contact).
   void renumber(const std::vector<std::uint32_t>& to) {
     if (rows_.empty()) return;
     index_.clear();
     for (std::size_t k = 0; k < rows_.size(); ++k) {
       ContactRow<D>& r = rows_[k];
-      r.i = to[r.i];
-      if (r.j >= 0) {
-        r.j = to[static_cast<std::size_t>(r.j)];
-        if (r.j < static_cast<std::int64_t>(r.i)) {
-          const std::uint32_t i = static_cast<std::uint32_t>(r.j);
-          r.j = r.i;
-          r.i = i;
-          r.fn = -r.fn;
-          r.ft = -r.ft;
-        }
-      }
+      rename_contact(r, [&](std::uint64_t i) { return to[i]; });
       index_[key_of(r.i, r.j, r.wall)] = static_cast<std::uint32_t>(k);
     }
   }

@@ -102,6 +102,22 @@ struct ContactRow {
   Vec<D> point = Vec<D>::Zero(), fn = Vec<D>::Zero(), ft = Vec<D>::Zero();
 };
 
+// A contact row's grains renamed by id(k), i < j kept for pairs: swapping them turns the force on
+// i into the force on the other grain (an engine that renumbers its grains).
+template <int D, class Id>
+void rename_contact(ContactRow<D>& c, Id&& id) {
+  c.i = static_cast<std::uint32_t>(id(c.i));
+  if (c.j < 0) return;
+  c.j = static_cast<std::int64_t>(id(static_cast<std::uint64_t>(c.j)));
+  if (c.j < static_cast<std::int64_t>(c.i)) {
+    const std::uint32_t i = static_cast<std::uint32_t>(c.j);
+    c.j = c.i;
+    c.i = i;
+    c.fn = -c.fn;
+    c.ft = -c.ft;
+  }
+}
+
 // The state of every particle at one time, in particle-id order (a snapshot). Once grains have
 // left through an outlet the rows are those present, in increasing id, and id gives each row's
 // particle id (empty: row k is particle k).

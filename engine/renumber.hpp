@@ -155,16 +155,7 @@ void rows_to_user(State& s, const IdMap& m) {
 // on i into the force on the other grain).
 template <int D>
 void contact_to_user(ContactRow<D>& c, const IdMap& m) {
-  c.i = static_cast<std::uint32_t>(m.user(c.i));
-  if (c.j < 0) return;
-  c.j = static_cast<std::int64_t>(m.user(static_cast<std::uint64_t>(c.j)));
-  if (c.j < static_cast<std::int64_t>(c.i)) {
-    const std::uint32_t i = static_cast<std::uint32_t>(c.j);
-    c.j = c.i;
-    c.i = i;
-    c.fn = -c.fn;
-    c.ft = -c.ft;
-  }
+  rename_contact(c, [&](std::uint64_t k) { return m.user(k); });
 }
 
 // The final state of a run in the scene's ids.
@@ -212,6 +203,25 @@ class UserIds final : public Observer<D> {
   const IdMap& m_;
 };
 
+// The run's observers, each wrapped to hear the scene's ids through map m (which may change as the
+// engine renumbers: EdmCore::track_ids).
+template <int D>
+class UserIdObservers {
+ public:
+  UserIdObservers(const std::vector<Observer<D>*>& observers, const IdMap& m) {
+    for (Observer<D>* o : observers) {
+      if (!o) continue;
+      wrapped_.push_back(std::make_unique<UserIds<D>>(*o, m));
+      list_.push_back(wrapped_.back().get());
+    }
+  }
+  const std::vector<Observer<D>*>& list() const { return list_; }
+
+ private:
+  std::vector<std::unique_ptr<UserIds<D>>> wrapped_;
+  std::vector<Observer<D>*> list_;
+};
+
 // Runs an engine on the system's grains in space order and reports in the scene's ids:
 // run(system, observers, ids) builds the engine on the reordered system with the wrapped
 // observers, hands it the ids (EdmCore::set_ids) and returns its result, which comes back here in
@@ -222,14 +232,8 @@ RunResult<D> run_in_space_order(System<D> system, const std::vector<Observer<D>*
   const std::vector<std::uint32_t> order = spatial_order(system);
   reorder(system, order);
   const IdMap ids(order);
-  std::vector<std::unique_ptr<UserIds<D>>> wrapped;
-  std::vector<Observer<D>*> obs;
-  for (Observer<D>* o : observers) {
-    if (!o) continue;
-    wrapped.push_back(std::make_unique<UserIds<D>>(*o, ids));
-    obs.push_back(wrapped.back().get());
-  }
-  RunResult<D> r = run(std::move(system), obs, ids);
+  const UserIdObservers<D> obs(observers, ids);
+  RunResult<D> r = run(std::move(system), obs.list(), ids);
   to_user(r, ids);
   return r;
 }

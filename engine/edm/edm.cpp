@@ -1,7 +1,6 @@
 // Pure event-driven dynamics: the EDM core (engine/edm/core.hpp) with no extension.
 #include "engine/edm.hpp"
 
-#include <memory>
 #include <vector>
 
 #include "engine/edm/core.hpp"
@@ -34,14 +33,8 @@ RunResult<D> run_queue(System<D>&& system, const EdmSettings& settings, const st
   if (edm::resort_interval(settings.resort, system.size(), 0.0) <= 0.0)
     return EdmEngine<D, Queue>(std::move(system), settings, observers, rough).run();
   IdMap ids;
-  std::vector<std::unique_ptr<UserIds<D>>> wrapped;
-  std::vector<Observer<D>*> obs;
-  for (Observer<D>* o : observers) {
-    if (!o) continue;
-    wrapped.push_back(std::make_unique<UserIds<D>>(*o, ids));
-    obs.push_back(wrapped.back().get());
-  }
-  EdmEngine<D, Queue> engine(std::move(system), settings, obs, rough, &ids);
+  const UserIdObservers<D> obs(observers, ids);
+  EdmEngine<D, Queue> engine(std::move(system), settings, obs.list(), rough, &ids);
   RunResult<D> r = engine.run();
   to_user(r, ids);
   return r;

@@ -164,50 +164,9 @@ TEST(Inlets, AFullRegionReportsTheRateItCouldNotMeet) {
   }
 }
 
-// A hopper fed from a shower inlet and drained through the floor's orifice, in TDM and the
-// hybrid (an inelastic, frictional bed) and EDM (an elastic gas): the accounts balance.
-const std::string kFeed = R"([run]
-dimension = 3
-method = "tdm"
-end_time = 0.3
-seed = 3
-gravity = [0.0, 0.0, -9.81]
-[domain]
-lower = [0.0, 0.0, -0.03]
-upper = [0.05, 0.05, 0.12]
-[material.glass]
-density = 2500.0
-restitution = 0.6
-contact = "hertz"
-young = 1.0e7
-poisson = 0.3
-friction = 0.4
-[particles.bed]
-material = "glass"
-radius = 0.0025
-count = 20
-region = {lower = [0.0, 0.0, 0.0], upper = [0.05, 0.05, 0.03]}
-[wall.floor]
-type = "plane"
-point = [0.025, 0.025, 0.0]
-normal = [0.0, 0.0, 1.0]
-hole = {shape = "disk", radius = 0.008}
-material = "glass"
-)" + test::bin_walls("0.05", "0.12") + R"([inlet.shower]
-type = "disk"
-point = [0.025, 0.025, 0.1]
-normal = [0.0, 0.0, 1.0]
-radius = 0.02
-material = "glass"
-grain_radius = [0.002, 0.0025]
-rate = 1500
-velocity = [0.0, 0.0, -0.5]
-spread = 0.05
-[outlet.bottom]
-type = "face"
-face = "z-"
-)";
 
+// The hopper of test::kFeed in TDM and the hybrid (an inelastic, frictional bed) and EDM (an
+// elastic gas): the accounts balance.
 TEST(Inlets, FedAndDrainedTheAccountsBalance) {
   for (const Method m : {Method::Edm, Method::Tdm, Method::Hybrid}) {
     SCOPED_TRACE(method_name(m));
@@ -216,7 +175,7 @@ TEST(Inlets, FedAndDrainedTheAccountsBalance) {
       set.push_back("material.glass.restitution=1.0");
       set.push_back("material.glass.friction=0.0");
     }
-    const Scene sc = load_scene_string(kFeed, "feed.toml", ".", set);
+    const Scene sc = load_scene_string(test::kFeed, "feed.toml", ".", set);
     const System<3>& sys = std::get<System<3>>(sc.system);
     const std::size_t N0 = sys.size();
     ASSERT_EQ(N0, 20u);

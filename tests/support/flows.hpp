@@ -44,4 +44,49 @@ inline std::string bin_walls(const std::string& w, const std::string& top) {
          ", 0.0]\nnormal = [0.0, -1.0, 0.0]\nmaterial = \"glass\"\n";
 }
 
+// A hopper of 20 glass grains fed from a shower inlet and drained through the floor's orifice
+// (tests/analytic/test_inlets.cpp: the accounts balance in each method; tests/unit/
+// test_edm_resort.cpp).
+inline const std::string kFeed = R"([run]
+dimension = 3
+method = "tdm"
+end_time = 0.3
+seed = 3
+gravity = [0.0, 0.0, -9.81]
+[domain]
+lower = [0.0, 0.0, -0.03]
+upper = [0.05, 0.05, 0.12]
+[material.glass]
+density = 2500.0
+restitution = 0.6
+contact = "hertz"
+young = 1.0e7
+poisson = 0.3
+friction = 0.4
+[particles.bed]
+material = "glass"
+radius = 0.0025
+count = 20
+region = {lower = [0.0, 0.0, 0.0], upper = [0.05, 0.05, 0.03]}
+[wall.floor]
+type = "plane"
+point = [0.025, 0.025, 0.0]
+normal = [0.0, 0.0, 1.0]
+hole = {shape = "disk", radius = 0.008}
+material = "glass"
+)" + test::bin_walls("0.05", "0.12") + R"([inlet.shower]
+type = "disk"
+point = [0.025, 0.025, 0.1]
+normal = [0.0, 0.0, 1.0]
+radius = 0.02
+material = "glass"
+grain_radius = [0.002, 0.0025]
+rate = 1500
+velocity = [0.0, 0.0, -0.5]
+spread = 0.05
+[outlet.bottom]
+type = "face"
+face = "z-"
+)";
+
 }  // namespace matep::test

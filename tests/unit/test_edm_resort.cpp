@@ -188,45 +188,9 @@ TEST(EdmResort, AGasWithScatteredIdsIsTheSameRunReSorted) {
 // inserted grains, removed grains, wall collisions and gravity, re-sorted every quarter event per
 // particle, against the run never re-sorted.
 TEST(EdmResort, AFedAndDrainedHopperOfRoughGrainsIsTheSameRunReSorted) {
-  const std::string scene = R"([run]
-dimension = 3
-method = "edm"
-end_time = 0.25
-seed = 3
-gravity = [0.0, 0.0, -9.81]
-[domain]
-lower = [0.0, 0.0, -0.03]
-upper = [0.05, 0.05, 0.12]
-[material.glass]
-density = 2500.0
-restitution = 0.95
-friction = 0.3
-[particles.bed]
-material = "glass"
-radius = 0.0025
-count = 60
-region = {lower = [0.0, 0.0, 0.0], upper = [0.05, 0.05, 0.03]}
-[wall.floor]
-type = "plane"
-point = [0.025, 0.025, 0.0]
-normal = [0.0, 0.0, 1.0]
-hole = {shape = "disk", radius = 0.008}
-material = "glass"
-)" + test::bin_walls("0.05", "0.12") + R"([inlet.shower]
-type = "disk"
-point = [0.025, 0.025, 0.1]
-normal = [0.0, 0.0, 1.0]
-radius = 0.02
-material = "glass"
-grain_radius = [0.002, 0.0025]
-rate = 1500
-velocity = [0.0, 0.0, -0.5]
-spread = 0.05
-[outlet.bottom]
-type = "face"
-face = "z-"
-)";
-  const Scene sc = load_scene_string(scene, "hopper.toml", ".", {});
+  const Scene sc = load_scene_string(test::kFeed, "feed.toml", ".",
+                                     {"run.method=edm", "run.end_time=0.25", "particles.bed.count=60",
+                                      "material.glass.restitution=0.95", "material.glass.friction=0.3"});
   const System<3>& sys = std::get<System<3>>(sc.system);
   EdmSettings s;
   s.end_time = sc.end_time;

@@ -25,8 +25,8 @@
 #include <limits>
 #include <optional>
 #include <stdexcept>
-#include <type_traits>
 #include <string>
+#include <type_traits>
 #include <utility>
 #include <vector>
 
@@ -440,6 +440,9 @@ class EdmCore {
     a.tag("edm.order");
     a(ids_->entries());
     a(resorts_);
+    if constexpr (A::loading)
+      if (derived().ext_resort() && ids_ == &own_ids_ && !ids_->entries().empty())
+        throw StateError("the engine state is of a run that re-sorts its particles (run.resort) and this run reports in the engine's order");
     a.tag("edm.flows");
     a(removed_);
     a(absent_);

@@ -176,6 +176,25 @@ TEST(CheckpointEngines, EdmReSortedGasResumesBitForBit) {
     };
     check_resume<3>(run, lists ? 4 : 3, lists ? "edm re-sorted, lists" : "edm re-sorted, cells");
   }
+  // Its state is refused by a run that does not re-sort (it reports in the engine's order, which
+  // the saved map no longer is).
+  std::vector<std::uint8_t> state;
+  CheckpointHooks keep;
+  keep.interval = 5.0;
+  keep.save = [&](double, const auto& st) {
+    if (state.empty()) state = archive_bytes(st);
+  };
+  EdmSettings s = edm_set(20.0, 0.25);
+  s.resort = 1.5;
+  s.checkpoint = &keep;
+  ASSERT_GT(run_edm<3>(sys, s, QueueKind::Calendar).resorts, 2u);
+  ASSERT_FALSE(state.empty());
+  CheckpointHooks resume;
+  resume.interval = keep.interval;
+  resume.resume = &state;
+  s.checkpoint = &resume;
+  s.resort = 0.0;
+  EXPECT_THROW(run_edm<3>(sys, s, QueueKind::Calendar), StateError);
 }
 
 TEST(CheckpointEngines, EdmIntervalCheckpointsDoNotChangeTheRun) {

@@ -157,35 +157,13 @@ TEST(Outlets, TdmRemovesAtTheFirstStepInside) {
 // A bin with a holed floor drained through the open lower face of the domain and through a box in
 // one corner of the floor (where the hybrid's grains are soft: a bed forms there), in all three
 // methods: the bookkeeping holds at every row and at the end.
-const std::string kDrain = R"([run]
-dimension = 3
-method = "tdm"
-end_time = 0.35
-seed = 3
-gravity = [0.0, 0.0, -9.81]
-[domain]
-lower = [0.0, 0.0, -0.03]
-upper = [0.05, 0.05, 0.12]
-[material.glass]
-density = 2500.0
-restitution = 0.6
-contact = "hertz"
-young = 1.0e7
-poisson = 0.3
-friction = 0.4
-[particles.beads]
+const std::string kDrain = test::holed_bin("0.35", "0.01", R"([particles.beads]
 material = "glass"
 radius = 0.0025
 count = 150
 arrangement = "random"
 region = {lower = [0.0, 0.0, 0.005], upper = [0.05, 0.05, 0.11]}
-[wall.floor]
-type = "plane"
-point = [0.025, 0.025, 0.0]
-normal = [0.0, 0.0, 1.0]
-hole = {shape = "disk", radius = 0.01}
-material = "glass"
-)" + test::bin_walls("0.05", "0.12") + R"([outlet.bottom]
+)") + R"([outlet.bottom]
 type = "face"
 face = "z-"
 [outlet.corner]

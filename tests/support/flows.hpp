@@ -44,13 +44,14 @@ inline std::string bin_walls(const std::string& w, const std::string& top) {
          ", 0.0]\nnormal = [0.0, -1.0, 0.0]\nmaterial = \"glass\"\n";
 }
 
-// A hopper of 20 glass grains fed from a shower inlet and drained through the floor's orifice
-// (tests/analytic/test_inlets.cpp: the accounts balance in each method; tests/unit/
-// test_edm_resort.cpp).
-inline const std::string kFeed = R"([run]
+// A bin of glass (Hertz, e = 0.6, mu = 0.4) 0.05 m square under a lid at 0.12 m, its floor at
+// z = 0 holed at the centre by a disk of radius `hole` (the domain reaches 0.03 m below it), under
+// gravity: the run to `end_time` in TDM, `particles` its [particles.*] tables.
+inline std::string holed_bin(const std::string& end_time, const std::string& hole, const std::string& particles) {
+  return R"([run]
 dimension = 3
 method = "tdm"
-end_time = 0.3
+end_time = )" + end_time + R"(
 seed = 3
 gravity = [0.0, 0.0, -9.81]
 [domain]
@@ -63,18 +64,24 @@ contact = "hertz"
 young = 1.0e7
 poisson = 0.3
 friction = 0.4
-[particles.bed]
+)" + particles + R"([wall.floor]
+type = "plane"
+point = [0.025, 0.025, 0.0]
+normal = [0.0, 0.0, 1.0]
+hole = {shape = "disk", radius = )" + hole + R"(}
+material = "glass"
+)" + bin_walls("0.05", "0.12");
+}
+
+// The holed bin with 20 grains on its floor, fed from a shower inlet and drained through the
+// floor's hole (tests/analytic/test_inlets.cpp: the accounts balance in each method;
+// tests/unit/test_edm_resort.cpp).
+inline const std::string kFeed = holed_bin("0.3", "0.008", R"([particles.bed]
 material = "glass"
 radius = 0.0025
 count = 20
 region = {lower = [0.0, 0.0, 0.0], upper = [0.05, 0.05, 0.03]}
-[wall.floor]
-type = "plane"
-point = [0.025, 0.025, 0.0]
-normal = [0.0, 0.0, 1.0]
-hole = {shape = "disk", radius = 0.008}
-material = "glass"
-)" + test::bin_walls("0.05", "0.12") + R"([inlet.shower]
+)") + R"([inlet.shower]
 type = "disk"
 point = [0.025, 0.025, 0.1]
 normal = [0.0, 0.0, 1.0]

@@ -24,4 +24,13 @@ inline void expect_scene_error(const std::string& text, const std::string& name,
   }
 }
 
+// Ten spheres in a unit box with `run_lines` added to the [run] table: a scene for tests that read
+// one run key.
+inline std::string small_gas_scene(const std::string& run_lines) {
+  return "[run]\ndimension = 3\nend_time = 1.0\n" + run_lines +
+         "[domain]\nlower = [0.0, 0.0, 0.0]\nupper = [1.0, 1.0, 1.0]\n"
+         "[material.m]\ndensity = 1.0\nrestitution = 1.0\n"
+         "[particles.p]\nmaterial = \"m\"\nradius = 0.05\ncount = 10\narrangement = \"random\"\n";
+}
+
 }  // namespace matep::test

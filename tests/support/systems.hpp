@@ -3,9 +3,11 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstring>
 #include <numbers>
 #include <random>
 #include <string>
+#include <vector>
 
 #include "engine/edm.hpp"
 #include "engine/result.hpp"
@@ -97,6 +99,12 @@ inline double Z_eos(int d, double phi) {
 // Enskog collision frequency per particle for sigma = m = 1 (docs/references.md §2.1).
 inline double enskog_rate(int d, double phi, double T) {
   return (d == 3 ? 24.0 : 8.0) * phi * g_contact(d, phi) / std::sqrt(std::numbers::pi) * std::sqrt(T);
+}
+
+// Whether two arrays hold the same bytes (a run repeated, resumed or re-sorted: bit for bit).
+template <class T>
+bool same_bits(const std::vector<T>& a, const std::vector<T>& b) {
+  return a.size() == b.size() && (a.empty() || std::memcmp(a.data(), b.data(), a.size() * sizeof(T)) == 0);
 }
 
 // Records every observer callback.

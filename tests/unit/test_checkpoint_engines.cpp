@@ -62,16 +62,11 @@ class Trace final : public Observer<D> {
 };
 
 template <int D>
-bool same_bits(const std::vector<Vec<D>>& a, const std::vector<Vec<D>>& b) {
-  return a.size() == b.size() && (a.empty() || std::memcmp(a.data(), b.data(), a.size() * sizeof(Vec<D>)) == 0);
-}
-
-template <int D>
 void expect_same_result(const RunResult<D>& a, const RunResult<D>& b) {
   EXPECT_EQ(a.status, b.status);
   EXPECT_EQ(a.time, b.time);
-  EXPECT_TRUE(same_bits<D>(a.x, b.x)) << "final positions differ";
-  EXPECT_TRUE(same_bits<D>(a.v, b.v)) << "final velocities differ";
+  EXPECT_TRUE(test::same_bits(a.x, b.x)) << "final positions differ";
+  EXPECT_TRUE(test::same_bits(a.v, b.v)) << "final velocities differ";
   EXPECT_EQ(a.counts.pair, b.counts.pair);
   EXPECT_EQ(a.counts.wall, b.counts.wall);
   EXPECT_EQ(a.soft.steps, b.soft.steps);

@@ -191,18 +191,14 @@ TEST(EdmLists, AutoChoosesListsForADenseGasWithoutGravityOnly) {
 }
 
 TEST(EdmLists, SceneKeys) {
-  const std::string base = "[run]\ndimension = 3\nend_time = 1.0\n";
-  const std::string tail =
-      "[domain]\nlower = [0.0, 0.0, 0.0]\nupper = [1.0, 1.0, 1.0]\n"
-      "[material.m]\ndensity = 1.0\nrestitution = 1.0\n"
-      "[particles.p]\nmaterial = \"m\"\nradius = 0.05\ncount = 10\narrangement = \"random\"\n";
-  const Scene a = load_scene_string(base + "neighbours = \"auto\"\nshell = 0.3\n" + tail, "s.toml", ".", {});
+  using test::small_gas_scene;
+  const Scene a = load_scene_string(small_gas_scene("neighbours = \"auto\"\nshell = 0.3\n"), "s.toml", ".", {});
   EXPECT_EQ(a.neighbours, "auto");
   EXPECT_DOUBLE_EQ(a.shell, 0.3);
-  EXPECT_EQ(load_scene_string(base + tail, "s.toml", ".", {}).neighbours, "cells");
-  test::expect_scene_error(base + "neighbours = \"verlet\"\n" + tail, "s.toml", ".", {"run.neighbours", "verlet"});
-  test::expect_scene_error(base + "shell = 0.0\n" + tail, "s.toml", ".", {"run.shell", "0"});
-  test::expect_scene_error(base + "shell = 5.0\n" + tail, "s.toml", ".", {"run.shell", "5"});
+  EXPECT_EQ(load_scene_string(small_gas_scene(""), "s.toml", ".", {}).neighbours, "cells");
+  test::expect_scene_error(small_gas_scene("neighbours = \"verlet\"\n"), "s.toml", ".", {"run.neighbours", "verlet"});
+  test::expect_scene_error(small_gas_scene("shell = 0.0\n"), "s.toml", ".", {"run.shell", "0"});
+  test::expect_scene_error(small_gas_scene("shell = 5.0\n"), "s.toml", ".", {"run.shell", "5"});
 }
 
 }  // namespace

@@ -80,11 +80,6 @@ struct Reports final : Observer<D> {
   void on_snapshot(const Snapshot<D>& s) override { snaps.push_back(s); }
 };
 
-template <int D>
-bool same_bits(const std::vector<Vec<D>>& a, const std::vector<Vec<D>>& b) {
-  return a.size() == b.size() && (a.empty() || std::memcmp(a.data(), b.data(), a.size() * sizeof(Vec<D>)) == 0);
-}
-
 // The two runs' reports are the same, bit for bit, a pair's collision from either grain.
 template <int D>
 void expect_same_reports(const Reports<D>& a, const Reports<D>& b) {
@@ -117,8 +112,8 @@ void expect_same_reports(const Reports<D>& a, const Reports<D>& b) {
     const Snapshot<D>& p = a.snaps[k];
     const Snapshot<D>& q = b.snaps[k];
     EXPECT_EQ(p.id, q.id) << "snapshot " << k;
-    EXPECT_TRUE(same_bits<D>(p.x, q.x)) << "snapshot " << k;
-    EXPECT_TRUE(same_bits<D>(p.v, q.v)) << "snapshot " << k;
+    EXPECT_TRUE(test::same_bits(p.x, q.x)) << "snapshot " << k;
+    EXPECT_TRUE(test::same_bits(p.v, q.v)) << "snapshot " << k;
     // The contacts' rows: the same set (their order is the tally's first-seen order, which an
     // exact tie may change), each with the same mean force.
     ASSERT_EQ(p.contacts.size(), q.contacts.size()) << "snapshot " << k;
@@ -142,10 +137,9 @@ template <int D>
 void expect_same_state(const RunResult<D>& a, const RunResult<D>& b) {
   EXPECT_EQ(a.status, b.status);
   EXPECT_EQ(a.id, b.id);
-  EXPECT_TRUE(same_bits<D>(a.x, b.x)) << "final positions differ";
-  EXPECT_TRUE(same_bits<D>(a.v, b.v)) << "final velocities differ";
-  EXPECT_EQ(a.w.size(), b.w.size());
-  EXPECT_TRUE(a.w.empty() || std::memcmp(a.w.data(), b.w.data(), a.w.size() * sizeof(a.w[0])) == 0) << "spins differ";
+  EXPECT_TRUE(test::same_bits(a.x, b.x)) << "final positions differ";
+  EXPECT_TRUE(test::same_bits(a.v, b.v)) << "final velocities differ";
+  EXPECT_TRUE(test::same_bits(a.w, b.w)) << "spins differ";
   EXPECT_EQ(a.radius, b.radius);
   EXPECT_EQ(a.counts.pair, b.counts.pair);
   EXPECT_EQ(a.counts.wall, b.counts.wall);
@@ -230,19 +224,15 @@ TEST(EdmResort, TheHybridKeepsItsOrder) {
 }
 
 TEST(EdmResort, SceneKeys) {
-  const std::string base = "[run]\ndimension = 3\nend_time = 1.0\n";
-  const std::string tail =
-      "[domain]\nlower = [0.0, 0.0, 0.0]\nupper = [1.0, 1.0, 1.0]\n"
-      "[material.m]\ndensity = 1.0\nrestitution = 1.0\n"
-      "[particles.p]\nmaterial = \"m\"\nradius = 0.05\ncount = 10\narrangement = \"random\"\n";
-  auto load = [&](const std::string& line) { return load_scene_string(base + line + tail, "s.toml", ".", {}).resort; };
+  using test::small_gas_scene;
+  auto load = [](const std::string& line) { return load_scene_string(small_gas_scene(line), "s.toml", ".", {}).resort; };
   EXPECT_LT(load(""), 0.0);
   EXPECT_LT(load("resort = \"auto\"\n"), 0.0);
   EXPECT_EQ(load("resort = \"off\"\n"), 0.0);
   EXPECT_EQ(load("resort = 12.5\n"), 12.5);
-  test::expect_scene_error(base + "resort = \"often\"\n" + tail, "s.toml", ".", {"run.resort", "often"});
-  test::expect_scene_error(base + "resort = 0\n" + tail, "s.toml", ".", {"run.resort", "0"});
-  test::expect_scene_error(base + "resort = -3.0\n" + tail, "s.toml", ".", {"run.resort", "-3"});
+  test::expect_scene_error(small_gas_scene("resort = \"often\"\n"), "s.toml", ".", {"run.resort", "often"});
+  test::expect_scene_error(small_gas_scene("resort = 0\n"), "s.toml", ".", {"run.resort", "0"});
+  test::expect_scene_error(small_gas_scene("resort = -3.0\n"), "s.toml", ".", {"run.resort", "-3"});
 }
 
 }  // namespace

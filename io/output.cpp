@@ -767,15 +767,13 @@ void write_summary(const std::string& path, const SummaryInfo& info, const RunRe
   f.print("  \"end_time\": {},\n", json_number(info.end_time));
   f.print("  \"time_reached\": {},\n", json_number(r.time));
   f.print("  \"wall_seconds\": {},\n", json_number(r.wall_seconds));
-  // With neighbour lists (EDM) the crossings are shell exits.
+  // With neighbour lists (EDM, the hybrid) the crossings are shell exits.
   f.print("  \"events\": {{\"pair_collisions\": {}, \"wall_collisions\": {}, \"{}\": {}, "
              "\"stale\": {}, \"thermo_samples\": {}, \"total\": {}}},\n",
              r.counts.pair, r.counts.wall, r.lists ? "shell_exits" : "cell_crossings", r.counts.cell, r.counts.stale,
              r.counts.samples, r.counts.total());
-  if (r.method == Method::Edm) {
-    f.print("  \"neighbours\": {},\n", json_string(r.lists ? "lists" : "cells"));
-    f.print("  \"resorts\": {},\n", r.resorts);
-  }
+  if (r.method != Method::Tdm) f.print("  \"neighbours\": {},\n", json_string(r.lists ? "lists" : "cells"));
+  if (r.method == Method::Edm) f.print("  \"resorts\": {},\n", r.resorts);
   f.print("  \"events_per_second\": {},\n", json_number(r.counts.total() / wall));
   f.print("  \"collisions_per_second\": {},\n", json_number(r.counts.collisions() / wall));
   f.print("  \"max_overlap\": {},\n", json_number(r.max_overlap));

@@ -112,8 +112,12 @@ class EdmCore {
   // extension takes i over instead of the run ending with status "collapse".
   bool ext_collapse(int) { return false; }
   // Whether the core may find pair candidates from per-particle neighbour lists (EdmSettings::
-  // lists); an extension that walks the cells by current position (the hybrid) keeps the cells.
+  // lists).
   bool ext_lists() const { return true; }
+  // How much farther apart than touching two shells may be and still list each other (the
+  // hybrid: its largest capture distance, so that a hard grain that may be captured by a soft one
+  // finds it in its list).
+  double ext_list_margin() const { return 0.0; }
   // Whether the core may re-sort the particles' storage (EdmSettings::resort); an extension that
   // keeps state by particle index of its own (the hybrid) says no.
   bool ext_resort() const { return true; }
@@ -224,6 +228,7 @@ class EdmCore {
     sphere_ = lists_ && !gravity_;
     if (lists_) {
       shell_ = set_.shell * 2.0 * rmax;
+      list_margin_ = derived().ext_list_margin();
       build_cells(2.0 * rmax, margin + 2.0 * shell_);
       build_lists();
     } else {
@@ -591,7 +596,8 @@ class EdmCore {
   void for_neighbours_reach(int i, double reach, F&& f) const {
     double wmin = kNever;
     for (int k = 0; k < D; ++k) wmin = std::min(wmin, grid_.width(k));
-    if (reach <= wmin) {
+    // With lists the cells hold each grain by its shell's centre, within shell_ of it per axis.
+    if (reach + 2.0 * shell_ <= wmin) {
       for_neighbours(i, f);
       return;
     }
@@ -710,8 +716,8 @@ class EdmCore {
   // of radius shell_ (its exit solves |x + v t - c| = shell_, EDMD's formula), and the domain's
   // faces are crossings of their own; under gravity, where the ball's exit is a quartic, it is a
   // cube of half-width shell_ clipped to the domain's faces (a per-axis quadratic, as a cell face).
-  // j is in i's list exactly when the two shells come closer than R_i + R_j, and then i is in j's
-  // (the lists are symmetric). A pair that meets does so inside both shells, so it is in both
+  // j is in i's list exactly when the two shells come closer than R_i + R_j (plus list_margin_,
+  // an extension's), and then i is in j's (the lists are symmetric). A pair that meets does so inside both shells, so it is in both
   // lists at the predictions that find it; leaving the shell is an event (it replaces the cell
   // crossing) that makes a new list about the particle's centre there. The cells hold each
   // particle by its shell's centre and are one largest diameter plus two shells wide, so the 3^D
@@ -719,6 +725,7 @@ class EdmCore {
   bool lists_ = false;
   bool sphere_ = false;       // ball shells (no gravity); else cubes
   double shell_ = 0.0;        // the shells' radius (cubes: half-width)
+  double list_margin_ = 0.0;  // ext_list_margin(): listed while the shells come closer than R_i + R_j + this
   int nb_cap_ = 0;            // entries per particle in nb_ (grown when a list would overflow)
   // A shell's centre and its particle's radius, side by side (what a list build reads of each
   // candidate).
@@ -738,7 +745,7 @@ class EdmCore {
   bool shells_meet(const Shell& a, const Shell& b, const Vec<D>& shift) const {
     const Vec<D> d = a.c - b.c - shift;
     if (sphere_) {
-      const double s = a.R + b.R + 2.0 * shell_;
+      const double s = a.R + b.R + 2.0 * shell_ + list_margin_;
       return d.squaredNorm() < s * s;
     }
     double g2 = 0.0;
@@ -746,7 +753,7 @@ class EdmCore {
       const double gk = std::abs(d[k]) - 2.0 * shell_;
       if (gk > 0.0) g2 += gk * gk;
     }
-    const double s = a.R + b.R;
+    const double s = a.R + b.R + list_margin_;
     return g2 < s * s;
   }
   void nb_append(int i, int j, std::uint8_t sh) {
@@ -952,6 +959,7 @@ class EdmCore {
                    type, partner);
         continue;
       }
+      if (derived().ext_skip_neighbour(i, j)) continue;
       test_moving(r, vi, Ri, j, now, best, type, partner);
     }
   }

@@ -153,7 +153,14 @@ class HybridEngine final : public edm::EdmCore<D, CalendarQueue, HybridEngine<D>
 
   // ---- hooks of the EDM core ----
   void ext_setup() { hybrid_setup(given_settings_, given_plan_); }
-  bool ext_lists() const { return false; }  // capture and the soft lists walk the cells by position
+  // With neighbour lists (run.neighbours) every grain keeps a shell and a list, soft and sleeping
+  // ones too: a grain released hard then has its list, and a soft grain that leaves its shell gets
+  // a new one at the substep (relocate). A hard grain lists every grain it may be captured by (the
+  // largest capture distance as the lists' margin), so that its predictions mark it an interface
+  // particle as the cells' walk would. The cells hold each grain by its shell's centre and are two
+  // shells wider: the walks by position (captures, the soft set's entries) reach what they did.
+  bool ext_lists() const { return true; }
+  double ext_list_margin() const { return cskin_; }
   bool ext_resort() const { return false; }  // its own state by index (the soft set's lists, springs, rules)
   // The soft set is at the run's time: not a step ahead (predrifted_), not behind (coasting).
   bool ext_can_stop() const { return !predrifted_ && !coasting(); }
@@ -738,6 +745,8 @@ class HybridEngine final : public edm::EdmCore<D, CalendarQueue, HybridEngine<D>
       queue_->erase(i);
       ++cold_[i].counter;
     }
+    // A pending grain flew without events since it stopped being hard: it may have left its shell.
+    if (this->lists_ && !in_shell(i)) this->relist(i);
     set_mode(i, kSoft);
     iface_flag_[i] = 0;
     cblo_[i].setConstant(kNever);  // relocate at the first substep (the box may be stale)
@@ -1307,6 +1316,7 @@ class HybridEngine final : public edm::EdmCore<D, CalendarQueue, HybridEngine<D>
   void relocate(int i, double t) {
     Hot<D>& h = hot_[i];
     std::array<int, D> c{};
+    const bool lists = this->lists_;
     for (int k = 0; k < D; ++k) {
       if (sys_.periodic[k]) {
         // A wrap changes the image shifts of its list entries: rebuild before the forces.
@@ -1322,6 +1332,7 @@ class HybridEngine final : public edm::EdmCore<D, CalendarQueue, HybridEngine<D>
                                      "too long for the contacts (stability limit {:.6g})",
                                      this->ids_->user(static_cast<std::uint64_t>(i)), t, h_, plan_.max_stable_dt);
       }
+      if (lists) continue;
       c[k] = std::isfinite(h.x[k]) ? grid_.coord(k, h.x[k]) : 0;
       const double cw = grid_.width(k);
       const int nk = grid_.count(k);
@@ -1330,12 +1341,47 @@ class HybridEngine final : public edm::EdmCore<D, CalendarQueue, HybridEngine<D>
       cbhi_[i][k] = c[k] == nk - 1 ? (closed ? std::nextafter(hi_[k] + h.R, kNever) : hi_[k])
                                    : lo_[k] + (c[k] + 1) * cw;
     }
+    if (lists) {
+      fit_shell(i);
+      shell_box(i);
+      set_free_reach(i);
+      return;
+    }
     set_free_reach(i);
     if (c != cold_[i].cell) {
       cell_remove(i);
       cold_[i].cell = c;
       cell_insert(i);
       mark_neighbours(i);
+    }
+  }
+
+  // With lists: whether grain i is inside its shell (engine/edm/core.hpp: a ball, under gravity a
+  // cube; a soft grain's box is the cube inside the ball, shell_box).
+  bool in_shell(int i) const {
+    const Vec<D> d = hot_[i].x - this->shell_c_[i].c;
+    const double s = this->shell_;
+    if (this->sphere_) return d.squaredNorm() <= s * s;
+    return (d.array().abs() <= s).all();
+  }
+  // A new shell, list and cell about i's centre when it has left its shell; the hard grains about
+  // its new place then check it (mark_neighbours, as a soft grain's move to another cell does).
+  void fit_shell(int i) {
+    if (!std::isfinite(hot_[i].x.squaredNorm()) || in_shell(i)) return;
+    this->relist(i);
+    mark_neighbours(i);
+  }
+  // Soft i's box (cblo_, cbhi_) with lists: inside its shell (a ball's inner cube, shortened by
+  // 1e-9 against round-off), inside the escape limits of closed axes and the domain along periodic
+  // ones (a wrap relocates), as the cells' boxes are.
+  void shell_box(int i) {
+    const Hot<D>& h = hot_[i];
+    const double hw = this->sphere_ ? (1.0 - 1e-9) * this->shell_ / std::sqrt(static_cast<double>(D)) : this->shell_;
+    const Vec<D>& c = this->shell_c_[i].c;
+    for (int k = 0; k < D; ++k) {
+      const bool closed = !sys_.periodic[k];
+      cblo_[i][k] = std::max(c[k] - hw, closed ? lo_[k] - h.R : lo_[k]);
+      cbhi_[i][k] = std::min(c[k] + hw, closed ? std::nextafter(hi_[k] + h.R, kNever) : hi_[k]);
     }
   }
 

@@ -273,6 +273,8 @@ RunResult<D> run_case(const Scene& sc, const System<D>& sys, const CheckpointHoo
   e.tc = sc.tc;
   e.thermo_interval = sc.output.thermo_interval;
   e.collapse_decades = sc.collapse_decades;
+  e.lists = sc.neighbours == "lists";
+  e.shell = sc.shell;
   e.checkpoint = h;
   e.stop = stop;
   if (sc.method == Method::Edm) return run_edm<D>(sys, e, QueueKind::Calendar, {obs});
@@ -315,6 +317,19 @@ TEST(CheckpointEngines, HybridCasesResumeBitForBit) {
   check_case("pour_settle.toml", kSmallPour, 9);
   check_case("vibrated_bed.toml", {"run.end_time=0.6", "output.thermo_interval=0.01"}, 10);
   check_case("u_tube_2d.toml", {"run.end_time=0.15", "output.thermo_interval=0.005"}, 11);
+}
+
+// The hybrid's hard grains on neighbour lists: the pour (cube shells under gravity; soft grains
+// leave their shells and get new ones, sleepers keep theirs) and a dense gas whose clusters go soft
+// (ball shells, periodic wraps).
+TEST(CheckpointEngines, HybridOnListsResumesBitForBit) {
+  std::vector<std::string> pour = kSmallPour;
+  pour.push_back("run.neighbours=\"lists\"");
+  check_case("pour_settle.toml", pour, 13);
+  check_case("cooling_clusters.toml",
+             {"run.neighbours=\"lists\"", "run.end_time=8", "output.thermo_interval=0.5", "particles.gas.count=2000",
+              "domain.upper=[60.0,60.0]", "material.grain.restitution=0.2"},
+             14);
 }
 
 // The small pour to t = 0.3 s with its soft set split on two threads (down to 100 awake grains a

@@ -108,6 +108,24 @@ TEST(Cli, RunWritesEveryOutputWithTheDocumentedHeaders) {
   fs::remove_all(d);
 }
 
+// The hybrid on neighbour lists: a small clustering gas whose clusters go soft. Its summary says
+// lists and counts shell exits, and every hard collision of its log replays (momentum, -e, energy).
+TEST(Cli, TheHybridOnNeighbourListsSaysSoAndItsLogReplays) {
+  const fs::path d = tmpdir("hybrid_lists");
+  const std::string scene = kCases + "cooling_clusters.toml --set 'run.neighbours=\"lists\"' --set run.end_time=8 "
+                            "--set particles.gas.count=2000 --set 'domain.upper=[60.0,60.0]' "
+                            "--set material.grain.restitution=0.2 --set output.events=true";
+  const Result r = sh("run " + scene + " --out " + d.string());
+  ASSERT_EQ(r.code, 0) << r.out;
+  const std::string summary = slurp(d / "summary.json");
+  EXPECT_NE(summary.find("\"neighbours\": \"lists\""), std::string::npos) << summary;
+  EXPECT_NE(summary.find("\"shell_exits\""), std::string::npos) << summary;
+  EXPECT_EQ(summary.find("\"to_soft\": 0,"), std::string::npos) << summary;  // clusters went soft
+  const Result v = sh("log verify " + (d / "events.bin").string() + " --scene " + scene);
+  EXPECT_EQ(v.code, 0) << v.out;
+  fs::remove_all(d);
+}
+
 TEST(Cli, TwoDimensionalFinalStateHeader) {
   const fs::path d = tmpdir("run2d");
   const Result r = sh("run " + kCases + "disks_in_a_box.toml --set run.end_time=0.2 --out " + d.string());

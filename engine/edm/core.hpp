@@ -608,6 +608,14 @@ class EdmCore {
     });
   }
 
+  // f(j, shift) for the particles of i's neighbour list (lists_), shift as for_neighbours gives it.
+  template <class F>
+  void for_list(int i, F&& f) const {
+    const std::size_t b = static_cast<std::size_t>(i) * nb_cap_;
+    for (int m = 0, n = nb_n_[i]; m < n; ++m)
+      f(nb_[b + m], any_periodic_ ? Vec<D>(-shifts_[nb_sh_[b + m]]) : Vec<D>(Vec<D>::Zero()));
+  }
+
   // ---- re-sorting (EdmSettings::resort) ----------------------------------------------------------
   // The particles' storage in the Z (Morton) order of their cells (engine/edm/neighbours.hpp
   // morton_key), so that the records an event reads, its particle's and its candidates', lie near

@@ -469,10 +469,18 @@ class HybridEngine final : public edm::EdmCore<D, CalendarQueue, HybridEngine<D>
   }
 
   // Marks the hard neighbours of i as interface particles (i has just become soft or moved cell).
+  // With lists, those of its list: a grain outside it cannot come within a capture distance of i
+  // before one of the two gets a new list (its shell's exit predicts it over its new list; i's
+  // marks again).
   void mark_neighbours(int i) {
-    for_neighbours(i, [&](int j, const Vec<D>&) {
+    const auto mark = [&](int j, const Vec<D>&) {
       if (mode_[j] == kHard) mark_interface(j);
-    });
+    };
+    if (this->lists_) {
+      this->for_list(i, mark);
+    } else {
+      for_neighbours(i, mark);
+    }
   }
 
   // The capture distance of a hard grain moving at `speed` (the gap to a soft grain below which it
@@ -1876,8 +1884,12 @@ class HybridEngine final : public edm::EdmCore<D, CalendarQueue, HybridEngine<D>
           gmin = std::min(gmin, std::sqrt(d2) - cut);
         }
       };
+      // With lists, i's list holds every grain that may come within a capture distance of i
+      // before one of the two gets a new list (ext_list_margin), which marks i again.
       if (direct) {
         for_soft_near(i, near);
+      } else if (this->lists_) {
+        this->for_list(i, near);
       } else {
         for_neighbours(i, near);
       }

@@ -174,7 +174,10 @@ class UserIds final : public Observer<D> {
   void on_collision(const CollisionRecord<D>& c) override {
     CollisionRecord<D> u = c;
     u.i = static_cast<std::uint32_t>(m_.user(c.i));
-    if (c.kind == EventKind::PairCollision) u.j = static_cast<std::uint32_t>(m_.user(c.j));
+    // j is a grain in a pair collision and in a switch's record (the grain itself); a wall's index
+    // in a wall collision.
+    if (c.kind == EventKind::PairCollision || c.kind == EventKind::ToSoft || c.kind == EventKind::ToHard)
+      u.j = static_cast<std::uint32_t>(m_.user(c.j));
     to_.on_collision(u);
   }
   void on_sample(const ThermoSample& s) override { to_.on_sample(s); }
@@ -224,14 +227,14 @@ class UserIdObservers {
 
 // Runs an engine on the system's grains in space order and reports in the scene's ids:
 // run(system, observers, ids) builds the engine on the reordered system with the wrapped
-// observers, hands it the ids (EdmCore::set_ids) and returns its result, which comes back here in
-// the scene's order.
+// observers, hands it the ids (EdmCore::track_ids: the engine keeps the map up to date as it
+// re-sorts) and returns its result, which comes back here in the scene's order.
 template <int D, class Run>
 RunResult<D> run_in_space_order(System<D> system, const std::vector<Observer<D>*>& observers, Run&& run) {
   system.check_fixed();  // its message names the scene's ids
   const std::vector<std::uint32_t> order = spatial_order(system);
   reorder(system, order);
-  const IdMap ids(order);
+  IdMap ids(order);
   const UserIdObservers<D> obs(observers, ids);
   RunResult<D> r = run(std::move(system), obs.list(), ids);
   to_user(r, ids);

@@ -773,7 +773,7 @@ void write_summary(const std::string& path, const SummaryInfo& info, const RunRe
              r.counts.pair, r.counts.wall, r.lists ? "shell_exits" : "cell_crossings", r.counts.cell, r.counts.stale,
              r.counts.samples, r.counts.total());
   if (r.method != Method::Tdm) f.print("  \"neighbours\": {},\n", json_string(r.lists ? "lists" : "cells"));
-  if (r.method == Method::Edm) f.print("  \"resorts\": {},\n", r.resorts);
+  if (r.method != Method::Tdm) f.print("  \"resorts\": {},\n", r.resorts);
   f.print("  \"events_per_second\": {},\n", json_number(r.counts.total() / wall));
   f.print("  \"collisions_per_second\": {},\n", json_number(r.counts.collisions() / wall));
   f.print("  \"max_overlap\": {},\n", json_number(r.max_overlap));

@@ -118,9 +118,15 @@ class EdmCore {
   // hybrid: its largest capture distance, so that a hard grain that may be captured by a soft one
   // finds it in its list).
   double ext_list_margin() const { return 0.0; }
-  // Whether the core may re-sort the particles' storage (EdmSettings::resort); an extension that
-  // keeps state by particle index of its own (the hybrid) says no.
+  // Whether the core may re-sort the particles' storage (EdmSettings::resort).
   bool ext_resort() const { return true; }
+  // Whether it may re-sort now (the hybrid: only while no grain is soft, pending or asleep); if
+  // not, the re-sort waits for the next one due.
+  bool ext_can_resort() const { return true; }
+  // The extension's own arrays by particle index, permuted with the core's: permute(array) moves
+  // row i to to[i] (an array not of N_ rows is left alone), and to[] renames a stored index.
+  template <class Permute>
+  void ext_permute(Permute&, const std::vector<std::uint32_t>&) {}
   // Whether the run may stop now on a stop request (an extension a step ahead says no; it must
   // then be ready at a later poll).
   bool ext_can_stop() const { return true; }
@@ -627,6 +633,7 @@ class EdmCore {
   // their order (an inlet's unfilled slots stay where it fills them, next_id_ onwards).
   void resort() {
     resort_at_ = (processed_ / resort_step_ + 1) * resort_step_;
+    if (!derived().ext_can_resort()) return;
     const std::size_t n = static_cast<std::size_t>(N_);
     // The new order: by key, then by index; from[k] is the particle that becomes k, to its inverse.
     std::vector<std::uint32_t> from(n), to(n);
@@ -695,6 +702,7 @@ class EdmCore {
           j = static_cast<int>(to[static_cast<std::size_t>(j)]);
         }
     }
+    derived().ext_permute(permute, to);
     // The cells again, each particle in the cell it was in (its position's, or its shell's centre's).
     std::fill(head_.begin(), head_.end(), CellHead{});
     std::fill(next_.begin(), next_.end(), -1);

@@ -161,7 +161,43 @@ class HybridEngine final : public edm::EdmCore<D, CalendarQueue, HybridEngine<D>
   // shells wider: the walks by position (captures, the soft set's entries) reach what they did.
   bool ext_lists() const { return true; }
   double ext_list_margin() const { return cskin_; }
-  bool ext_resort() const { return false; }  // its own state by index (the soft set's lists, springs, rules)
+  // Re-sorting (run.resort): only while no grain is soft, pending or asleep, when what the soft
+  // set keeps by index is its per-grain arrays (permuted with the core's: ext_permute) and the
+  // switching rule's memory of partners; its lists, springs, groups and sleepers are empty. A
+  // re-sort due while grains are soft waits for the next one due.
+  bool ext_resort() const { return true; }
+  bool ext_can_resort() const {
+    return soft_.empty() && pending_.empty() && asleep_ == 0 && asleep_list_.empty() && iface_.empty() &&
+           pairs_.size() == 0 && we_.empty() && pe_sleep_.empty() && we_sleep_.empty() && watched_.empty() &&
+           leaving_.empty() && unsupported_.empty() && !predrifted_;
+  }
+  template <class Permute>
+  void ext_permute(Permute& permute, const std::vector<std::uint32_t>& to) {
+    for (auto* v : {&vh_, &acc_, &f_, &x0_, &cblo_, &cbhi_, &fz_base_, &fz_mix_, &x_check_, &fz_step_}) permute(*v);
+    for (auto* v : {&wh_, &alpha_, &tq_, &fz_tmix_, &fz_tbase_}) permute(*v);
+    for (auto* v : {&minv_, &iinv_, &last_contact_, &iface_next_, &rate_t0_, &fz_scale_, &region_retry_, &cfree2_})
+      permute(*v);
+    for (auto* v : {&quiet_checks_, &slot_, &gslot_, &asleep_slot_}) permute(*v);
+    for (auto* v : {&touching_, &near_, &mode_, &iface_flag_, &cand_, &joined_by_, &fz_cand_, &fz_lost_, &watch_flag_})
+      permute(*v);
+    permute(begun_n_);
+    permute(region_seen_);
+    switch_.permute(permute, to);
+    // The fixed grains under their new indices, in index order as at the start.
+    for (int& k : fixed_list_) k = static_cast<int>(to[static_cast<std::size_t>(k)]);
+    std::sort(fixed_list_.begin(), fixed_list_.end());
+    // Scratch of the substeps (made again before each use) and the threads' owners of rows.
+    for (auto* v : {&region_, &early_, &group_, &freed_, &fresh_, &woken_}) v->clear();
+    held_.clear();
+    near_pairs_.clear();
+    moved_.clear();
+    moved_w_.clear();
+    springs_.clear();
+    for (const std::uint32_t k : own_set_) own_[k] = kUnowned;
+    own_set_.clear();
+    split_T_ = 0;
+    dirty_ = true;  // the soft set's grid and lists are made anew at the next substep
+  }
   // The soft set is at the run's time: not a step ahead (predrifted_), not behind (coasting).
   bool ext_can_stop() const { return !predrifted_ && !coasting(); }
   // The EDM cells reach every grain a capture may need (the largest capture distance), not the
@@ -2732,9 +2768,9 @@ RunResult<D> run_hybrid(System<D> system, const EdmSettings& edm, const HybridSe
                         const std::vector<Observer<D>*>& observers, const SoftPlan* plan) {
   // The grains in space order (engine/renumber.hpp), everything reported in the scene's ids.
   return run_in_space_order<D>(std::move(system), observers,
-                               [&](System<D>&& sys, const std::vector<Observer<D>*>& obs, const IdMap& ids) {
+                               [&](System<D>&& sys, const std::vector<Observer<D>*>& obs, IdMap& ids) {
                                  HybridEngine<D> engine(std::move(sys), edm, hybrid, plan, obs);
-                                 engine.set_ids(ids);
+                                 engine.track_ids(&ids);
                                  return engine.run();
                                });
 }

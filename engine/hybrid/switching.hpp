@@ -76,6 +76,23 @@ class SwitchRule {
     a(recent_t_);
   }
 
+  // The histories under new particle indices (the engine re-sorted its storage): permute(v) moves
+  // row i of a per-particle array to to[i]; the remembered partners are renamed.
+  template <class Permute>
+  void permute(Permute& permute, const std::vector<std::uint32_t>& to) {
+    permute(rapid_);
+    permute(ema_);
+    permute(prev_);
+    permute(prevu_);
+    permute(u0_);
+    permute(seen_);
+    permute(recent_);
+    permute(recent_t_);
+    for (auto& r : recent_)
+      for (int& j : r)
+        if (j >= 0) j = static_cast<int>(to[static_cast<std::size_t>(j)]);
+  }
+
   // A pair collision of hard particles i and j at t; last_i, last_j: the times of their previous
   // collisions (-infinity if none); contact_time(): t_c of this impact (called only when needed).
   // u: the impact's normal speed (0: not known; the run then goes by the intervals alone).

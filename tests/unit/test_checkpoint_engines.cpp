@@ -275,6 +275,7 @@ RunResult<D> run_case(const Scene& sc, const System<D>& sys, const CheckpointHoo
   e.collapse_decades = sc.collapse_decades;
   e.lists = sc.neighbours == "lists";
   e.shell = sc.shell;
+  e.resort = sc.resort;
   e.checkpoint = h;
   e.stop = stop;
   if (sc.method == Method::Edm) return run_edm<D>(sys, e, QueueKind::Calendar, {obs});
@@ -322,6 +323,19 @@ TEST(CheckpointEngines, HybridCasesResumeBitForBit) {
 // The hybrid's hard grains on neighbour lists: the pour (cube shells under gravity; soft grains
 // leave their shells and get new ones, sleepers keep theirs) and a dense gas whose clusters go soft
 // (ball shells, periodic wraps).
+// The hybrid re-sorting its storage while no grain is soft (run.resort): a clustering gas of disks
+// whose grains go soft and back, resumed from random stops with its map to the scene's ids, its
+// renamed histories and the schedule of re-sorts.
+TEST(CheckpointEngines, HybridReSortedResumesBitForBit) {
+  const std::vector<std::string> gas = {"run.end_time=8", "output.thermo_interval=0.5", "particles.gas.count=2000",
+                                        "domain.upper=[60.0,60.0]", "material.grain.restitution=0.3",
+                                        "run.resort=0.05"};
+  check_case("cooling_clusters.toml", gas, 15);
+  std::vector<std::string> listed = gas;
+  listed.push_back("run.neighbours=\"lists\"");
+  check_case("cooling_clusters.toml", listed, 16);
+}
+
 TEST(CheckpointEngines, HybridOnListsResumesBitForBit) {
   std::vector<std::string> pour = kSmallPour;
   pour.push_back("run.neighbours=\"lists\"");

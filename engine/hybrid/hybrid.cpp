@@ -152,7 +152,13 @@ class HybridEngine final : public edm::EdmCore<D, CalendarQueue, HybridEngine<D>
   bool predicted(int i) const { return mode_[i] == kHard; }
 
   // ---- hooks of the EDM core ----
-  void ext_setup() { hybrid_setup(given_settings_, given_plan_); }
+  void ext_setup() {
+    hybrid_setup(given_settings_, given_plan_);
+    // run.resort = "auto" does not re-sort the hybrid: it starts in space order (renumber.hpp), and
+    // re-sorting a million-grain gas every 8 events per particle made it 1.08-1.17 x slower
+    // (0.62 s a re-sort, against EDM's 0.23 s: its own arrays; bench/README.md).
+    if (set_.resort < 0.0) set_.resort = 0.0;
+  }
   // With neighbour lists (run.neighbours) every grain keeps a shell and a list, soft and sleeping
   // ones too: a grain released hard then has its list, and a soft grain that leaves its shell gets
   // a new one at the substep (relocate). A hard grain lists every grain it may be captured by (the

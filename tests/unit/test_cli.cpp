@@ -123,6 +123,16 @@ TEST(Cli, TheHybridOnNeighbourListsSaysSoAndItsLogReplays) {
   EXPECT_EQ(summary.find("\"to_soft\": 0,"), std::string::npos) << summary;  // clusters went soft
   const Result v = sh("log verify " + (d / "events.bin").string() + " --scene " + scene);
   EXPECT_EQ(v.code, 0) << v.out;
+  // A switch's record names its grain twice, by the scene's id (i = j: README, events.bin).
+  matep::EventLogReader log((d / "events.bin").string());
+  matep::EventRecord rec;
+  std::uint64_t switches = 0;
+  while (log.next(rec))
+    if (rec.kind == 4 || rec.kind == 5) {
+      ++switches;
+      ASSERT_EQ(rec.i, rec.j) << "switch at t = " << rec.time;
+    }
+  EXPECT_GT(switches, 100u);
   fs::remove_all(d);
 }
 

@@ -132,10 +132,9 @@ class EdmCore {
   bool ext_can_stop() const { return true; }
 
   // The scene's id of each particle, when the engine runs its grains in another order
-  // (engine/renumber.hpp): the messages name grains by it.
-  void set_ids(IdMap ids) { *ids_ = std::move(ids); }
-  // The map the run reports through (its observers wrapped in UserIds over it, its result mapped by
-  // to_user), which the core keeps up to date when it re-sorts the particles (EdmSettings::resort).
+  // (engine/renumber.hpp): the messages name grains by it, and it is the map the run reports
+  // through (its observers wrapped in UserIds over it, its result mapped by to_user), which the
+  // core keeps up to date when it re-sorts the particles (EdmSettings::resort).
   void track_ids(IdMap* ids) { ids_ = ids; }
 
   // Registers a system event; its id is the returned value (valid once init has run).
@@ -733,8 +732,8 @@ class EdmCore {
   // faces are crossings of their own; under gravity, where the ball's exit is a quartic, it is a
   // cube of half-width shell_ clipped to the domain's faces (a per-axis quadratic, as a cell face).
   // j is in i's list exactly when the two shells come closer than R_i + R_j (plus list_margin_,
-  // an extension's), and then i is in j's (the lists are symmetric). A pair that meets does so inside both shells, so it is in both
-  // lists at the predictions that find it; leaving the shell is an event (it replaces the cell
+  // an extension's), and then i is in j's (the lists are symmetric). A pair that meets does so
+  // inside both shells, so it is in both lists at the predictions that find it; leaving the shell is an event (it replaces the cell
   // crossing) that makes a new list about the particle's centre there. The cells hold each
   // particle by its shell's centre and are one largest diameter plus two shells wide, so the 3^D
   // cells around a centre hold every particle whose shell may come within reach.
@@ -1682,7 +1681,7 @@ class EdmCore {
   double prev_ke_ = -1.0;
   std::string status_, message_;
   IdMap own_ids_;
-  IdMap* ids_ = &own_ids_;  // the scene's ids (set_ids, track_ids; empty: the engine's order is the scene's)
+  IdMap* ids_ = &own_ids_;  // the scene's ids (track_ids; empty: the engine's order is the scene's)
   std::uint64_t resort_step_ = 0;  // particle events between two re-sorts (0: never)
   std::uint64_t resort_at_ = 0;    // the next re-sort when processed_ reaches it
   std::uint64_t resorts_ = 0;

@@ -11,6 +11,7 @@
 #include <optional>
 #include <stdexcept>
 
+#include "engine/edm/neighbours.hpp"
 #include "engine/grid.hpp"
 #include "engine/hybrid.hpp"
 #include "engine/rough_rules.hpp"
@@ -557,6 +558,30 @@ std::string describe(const Scene& scene, const System<D>& sys) {
   // Predicted collision rate from Enskog theory (docs/references.md §2.1).
   const Enskog<D> en = enskog<D>(sys);
   s += fmt::format("packing      {:.4f}\n", en.phi);
+  if (scene.method != Method::Tdm) {
+    // How the hard grains find their pair candidates and whether their storage is re-sorted, by the
+    // rules the engine applies (engine/edm/neighbours.hpp): the moving grains' packing decides "auto".
+    double moving = 0.0;
+    for (std::size_t i = 0; i < sys.size(); ++i)
+      if (!sys.is_fixed(i)) moving += ball_volume<D>(sys.radius[i]);
+    const double phi = moving / sys.volume();
+    const bool gravity = sys.gravity.squaredNorm() > 0.0;
+    const bool automatic = scene.neighbours == "auto";
+    const bool lists = scene.neighbours == "lists" || (automatic && edm::lists_pay(phi, gravity));
+    s += fmt::format("pair search  {}{}\n",
+                     lists ? fmt::format("neighbour lists, shells of {} largest diameters", scene.shell)
+                           : std::string("cells"),
+                     automatic ? fmt::format(" (auto: lists where the moving grains fill at least {} of the domain, "
+                                             "without gravity)",
+                                             edm::kListsFromPacking)
+                               : std::string());
+    const bool hybrid = scene.method == Method::Hybrid;
+    const double every = hybrid && scene.resort < 0.0 ? 0.0 : edm::resort_interval(scene.resort, sys.size(), phi);
+    s += fmt::format("storage      {}\n",
+                     every > 0.0 ? fmt::format("re-sorted in space every {} particle events per particle{}", every,
+                                               hybrid ? " while no grain is soft" : "")
+                                 : std::string("in its first order, not re-sorted (run.resort)"));
+  }
   if (en.rate)
     s += fmt::format("predicted    {:.4g} collisions per unit time (Enskog, elastic, initial T = {:.4g}); "
                      "about {:.3g} collisions to end_time = {}\n",

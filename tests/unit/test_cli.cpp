@@ -171,6 +171,28 @@ TEST(Cli, CheckDescribesWhatWillBeModelled) {
   EXPECT_NE(r.out.find("collisions per unit time"), std::string::npos);
 }
 
+// check says how the hard grains find their partners and whether their storage is re-sorted, by
+// the engine's own rules ("auto": lists from packing 0.45 without gravity; the hybrid re-sorts only
+// when given a number).
+TEST(Cli, CheckSaysHowTheHardGrainsFindTheirPartners) {
+  const std::string gas = kCases + "elastic_gas.toml --set 'run.neighbours=\"auto\"'";
+  const Result a = sh("check " + gas);  // packing 0.31
+  ASSERT_EQ(a.code, 0) << a.out;
+  EXPECT_NE(a.out.find("pair search  cells (auto"), std::string::npos) << a.out;
+  const Result b = sh("check " + gas + " --set 'domain.upper=[14.5,14.5,14.5]'");  // packing 0.47
+  ASSERT_EQ(b.code, 0) << b.out;
+  EXPECT_NE(b.out.find("pair search  neighbour lists, shells of 0.125 largest diameters (auto"), std::string::npos)
+      << b.out;
+  EXPECT_NE(b.out.find("storage      in its first order"), std::string::npos) << b.out;
+  const Result c = sh("check " + kCases + "cooling_clusters.toml --set run.resort=4");
+  EXPECT_NE(c.out.find("storage      re-sorted in space every 4 particle events per particle while no grain is soft"),
+            std::string::npos)
+      << c.out;
+  const Result d = sh("check " + kCases + "cooling_clusters.toml");
+  EXPECT_NE(d.out.find("pair search  cells\n"), std::string::npos) << d.out;
+  EXPECT_NE(d.out.find("storage      in its first order"), std::string::npos) << d.out;
+}
+
 TEST(Cli, BadInputGetsOneClearMessageAndExitStatus2) {
   const fs::path d = tmpdir("bad");
   const fs::path scene = d / "bad.toml";

@@ -77,6 +77,10 @@ struct Outlet {
   int face = -1;
 };
 
+// Ball volume: 4/3 pi r^3 in 3D, pi r^2 in 2D (disks of unit thickness).
+template <int D>
+double ball_volume(double r);
+
 template <int D>
 struct System {
   static constexpr int dimension = D;
@@ -150,16 +154,21 @@ struct System {
     for (int k = 0; k < D; ++k) V *= upper[k] - lower[k];
     return V;
   }
+  // The volume of the moving (not fixed) grains among the first n over the domain's: what the
+  // event-driven "auto" rules judge by (engine/edm/neighbours.hpp).
+  double moving_packing(std::size_t n) const {
+    double v = 0.0;
+    for (std::size_t i = 0; i < n; ++i)
+      if (!is_fixed(i)) v += ball_volume<D>(radius[i]);
+    return v / volume();
+  }
+  double moving_packing() const { return moving_packing(size()); }
   // Mass of particle i: density times volume (3D) or times area per unit thickness (2D).
   double mass(std::size_t i) const;
   // Throws std::invalid_argument unless `fixed` is empty or has one flag per particle and every
   // fixed grain is at rest (zero velocity and spin): the engines' precondition.
   void check_fixed() const;
 };
-
-// Ball volume: 4/3 pi r^3 in 3D, pi r^2 in 2D (disks of unit thickness).
-template <int D>
-double ball_volume(double r);
 
 // Settings of an event-driven run (everything not part of the physical system).
 struct EdmSettings {

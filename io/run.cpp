@@ -561,13 +561,9 @@ std::string describe(const Scene& scene, const System<D>& sys) {
   if (scene.method != Method::Tdm) {
     // How the hard grains find their pair candidates and whether their storage is re-sorted, by the
     // rules the engine applies (engine/edm/neighbours.hpp): the moving grains' packing decides "auto".
-    double moving = 0.0;
-    for (std::size_t i = 0; i < sys.size(); ++i)
-      if (!sys.is_fixed(i)) moving += ball_volume<D>(sys.radius[i]);
-    const double phi = moving / sys.volume();
-    const bool gravity = sys.gravity.squaredNorm() > 0.0;
+    const double phi = sys.moving_packing();
     const bool automatic = scene.neighbours == "auto";
-    const bool lists = scene.neighbours == "lists" || (automatic && edm::lists_pay(phi, gravity));
+    const bool lists = edm::lists_chosen(scene.neighbours == "lists", automatic, phi, sys.gravity.squaredNorm() > 0.0);
     s += fmt::format("pair search  {}{}\n",
                      lists ? fmt::format("neighbour lists, shells of {} largest diameters", scene.shell)
                            : std::string("cells"),

@@ -191,6 +191,7 @@ class EdmCore {
     }
 
     derived().ext_setup();
+    const double packing = sys.moving_packing(static_cast<std::size_t>(N0_));  // before the radii are released
     // Copy the input into the engine's arrays one array at a time, releasing each input array
     // as soon as it is copied (peak memory).
     hot_.resize(N_);
@@ -229,7 +230,7 @@ class EdmCore {
     }
     setup_rough(rough);
     const double margin = derived().ext_cell_margin();
-    lists_ = (set_.lists || (set_.lists_auto && lists_pay(moving_packing(), gravity_))) && derived().ext_lists();
+    lists_ = lists_chosen(set_.lists, set_.lists_auto, packing, gravity_) && derived().ext_lists();
     sphere_ = lists_ && !gravity_;
     if (lists_) {
       shell_ = set_.shell * 2.0 * rmax;
@@ -240,16 +241,8 @@ class EdmCore {
       build_cells(2.0 * rmax, margin);
     }
     derived().ext_cells_ready(rmax);
-    const double every = derived().ext_resort() ? resort_interval(set_.resort, static_cast<std::size_t>(N0_), moving_packing()) : 0.0;
+    const double every = derived().ext_resort() ? resort_interval(set_.resort, static_cast<std::size_t>(N0_), packing) : 0.0;
     resort_step_ = every > 0.0 ? std::max<std::uint64_t>(1, static_cast<std::uint64_t>(every * N0_)) : 0;
-  }
-
-  // The moving grains' volume over the domain's (what "auto" neighbours judge by).
-  double moving_packing() const {
-    double v = 0.0;
-    for (int i = 0; i < N0_; ++i)
-      if (!is_fixed(i)) v += ball_volume<D>(hot_[i].R);
-    return v / sys_.volume();
   }
 
   template <class V>

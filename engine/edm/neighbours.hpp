@@ -18,6 +18,10 @@ inline constexpr double kListsFromPacking = 0.45;
 // domain's), without gravity (under gravity the shells are cubes, which lost to the cells in both
 // gases measured, packing 0.26 and 0.445).
 inline bool lists_pay(double packing, bool gravity) { return !gravity && packing >= kListsFromPacking; }
+// Whether a run takes the lists: asked for (run.neighbours = "lists"), or "auto" where they pay.
+inline bool lists_chosen(bool lists, bool automatic, double packing, bool gravity) {
+  return lists || (automatic && lists_pay(packing, gravity));
+}
 
 // Re-sorting the particles' storage in space (engine/edm/core.hpp "re-sorting"): from how many
 // particles, below which packing, and how often (particle events per particle between two

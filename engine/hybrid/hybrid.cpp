@@ -515,13 +515,19 @@ class HybridEngine final : public edm::EdmCore<D, CalendarQueue, HybridEngine<D>
   // before one of the two gets a new list (its shell's exit predicts it over its new list; i's
   // marks again).
   void mark_neighbours(int i) {
-    const auto mark = [&](int j, const Vec<D>&) {
+    for_capture_range(i, [&](int j, const Vec<D>&) {
       if (mode_[j] == kHard) mark_interface(j);
-    };
+    });
+  }
+  // f(j, shift) for the grains that may come within a capture distance of i before one of the two
+  // moves to other cells or gets a new list: with lists, i's list (ext_list_margin); else the 3^D
+  // cells around i.
+  template <class F>
+  void for_capture_range(int i, F&& f) const {
     if (this->lists_) {
-      this->for_list(i, mark);
+      this->for_list(i, f);
     } else {
-      for_neighbours(i, mark);
+      for_neighbours(i, f);
     }
   }
 
@@ -1926,14 +1932,10 @@ class HybridEngine final : public edm::EdmCore<D, CalendarQueue, HybridEngine<D>
           gmin = std::min(gmin, std::sqrt(d2) - cut);
         }
       };
-      // With lists, i's list holds every grain that may come within a capture distance of i
-      // before one of the two gets a new list (ext_list_margin), which marks i again.
       if (direct) {
         for_soft_near(i, near);
-      } else if (this->lists_) {
-        this->for_list(i, near);
       } else {
-        for_neighbours(i, near);
+        for_capture_range(i, near);
       }
       if (in) {
         iface_flag_[i] = 0;

@@ -367,6 +367,7 @@ class HybridEngine final : public edm::EdmCore<D, CalendarQueue, HybridEngine<D>
     hdt_ = 0.5 * h_;
     rot_ = plan_.friction;
     epsd_ = plan_.rolling_model == RollingModel::Epsd;
+    springs_.set_rolling(epsd_);
     rolling_ = plan_.rolling;
     pairs_.set_rolling(epsd_);
     const Skins sk = hybrid_skins(sys_, plan_, hs, h_);

@@ -8,6 +8,7 @@
 #include <cmath>
 #include <numeric>
 #include <stdexcept>
+#include <type_traits>
 
 #include "contact/soft.hpp"
 #include "engine/flatten.hpp"
@@ -68,6 +69,7 @@ class TdmEngine {
   // ---- outlets ----
   bool scan_outlets();
   void drop_gone();
+  void release_working_arrays();
   void set_ranges();
   // ---- inlets ----
   bool insert_due();
@@ -82,7 +84,7 @@ class TdmEngine {
     return is_fixed(i) ? Vec<D>::Zero() : soft::full_step<D>(v_[i], f_[i], minv_[i], g_, hdt_);
   }
   Spin<D> w_full(std::size_t i) const {
-    if (is_fixed(i)) return Spin<D>::Zero();
+    if (is_fixed(i) || !spins_) return Spin<D>::Zero();
     return rot_ ? Spin<D>(w_[i] + hdt_ * (tq_[i] * iinv_[i])) : w_[i];
   }
   // The mass a contact sees: a fixed grain is infinitely heavy, so the pair's m* is the moving
@@ -106,6 +108,7 @@ class TdmEngine {
   double dt_ = 0.0, hdt_ = 0.0, skin_ = 0.0, half_skin2_ = 0.0;
   int T_ = 1;
   bool rot_ = false, uniform_ = false;
+  bool spins_ = true;  // w_ is held: rotation, or spins given by the scene (else every spin is zero)
   bool rolling_ = false;  // some contact has rolling resistance (the force loops' Roll instantiation)
   bool epsd_ = false;  // Epsd rolling resistance: the contacts carry rolling spring torques (mr_, wl_mr_)
   NormalLaw law_ = NormalLaw::Linear;  // one law for the whole run (plan_soft checks)
@@ -149,12 +152,6 @@ class TdmEngine {
   std::vector<std::uint8_t> st_shift_;
   std::uint8_t centre_shift_ = 0;
   bool initial_ = true;     // the force evaluation at t = 0 (contacts present then began before)
-  std::vector<Vec<D>> scratch_vec_;
-  std::vector<Spin<D>> scratch_spin_;
-  std::vector<double> scratch_dbl_;
-  std::vector<int> scratch_int_;
-  std::vector<std::uint32_t> scratch_u32_;
-  std::vector<std::uint8_t> scratch_u8_;
 
   // Threads: particle ranges and per-thread accumulators.
   std::vector<std::uint32_t> lo_, hi_, wlo_, whi_;
@@ -312,7 +309,6 @@ void TdmEngine<D>::setup() {
   }
   sys_.check_fixed();
   n_fixed_ = sys_.fixed_count();
-  if (n_fixed_ > 0) fixed_ = sys_.fixed;
   plan_ = given_plan_ ? *given_plan_ : preflight(sys_, set_);
   t0_ = set_.start_time;
   const double span = set_.end_time - t0_;
@@ -334,19 +330,13 @@ void TdmEngine<D>::setup() {
   walls_.assign(shapes_);
   rot_ = plan_.friction;
   epsd_ = plan_.rolling_model == RollingModel::Epsd;
+  springs_.set_rolling(epsd_);
   rolling_ = plan_.rolling;
   law_ = plan_.law;
 
-  // Take over the system's particle state (run_tdm owns its copy of the system).
-  x_ = std::move(sys_.x);
-  v_ = std::move(sys_.v);
-  w_ = sys_.w.empty() ? std::vector<Spin<D>>(N_, Spin<D>::Zero()) : std::move(sys_.w);
-  R_ = sys_.radius;
-  mat_ = sys_.material;
-  acc_.assign(N_, Vec<D>::Zero());
-  f_.assign(N_, Vec<D>::Zero());
-  alpha_.assign(N_, Spin<D>::Zero());
-  tq_.assign(N_, Spin<D>::Zero());
+  // Take over the system's particle state (run_tdm owns its copy of the system, which keeps no
+  // per-particle array after this). Angular accelerations and torques only with rotation; spins
+  // only with rotation or when the scene gives some (they are then constant).
   m_.resize(N_);
   minv_.resize(N_);
   iinv_.resize(N_);
@@ -355,8 +345,24 @@ void TdmEngine<D>::setup() {
   for (std::size_t i = 0; i < N_; ++i) {
     m_[i] = sys_.mass(i);
     minv_[i] = 1.0 / m_[i];
-    iinv_[i] = 1.0 / (q * m_[i] * R_[i] * R_[i]);  // I = q m R^2: 2/5 spheres, 1/2 disks
+    const double R = sys_.radius[i];
+    iinv_[i] = 1.0 / (q * m_[i] * R * R);  // I = q m R^2: 2/5 spheres, 1/2 disks
     id_[i] = static_cast<std::uint32_t>(i);
+  }
+  x_ = std::move(sys_.x);
+  v_ = std::move(sys_.v);
+  spins_ = rot_ || std::any_of(sys_.w.begin(), sys_.w.end(), [](const Spin<D>& w) { return !w.isZero(0.0); });
+  if (spins_) w_ = sys_.w.empty() ? std::vector<Spin<D>>(N_, Spin<D>::Zero()) : std::move(sys_.w);
+  std::vector<Spin<D>>().swap(sys_.w);
+  R_ = std::move(sys_.radius);
+  mat_ = std::move(sys_.material);
+  if (n_fixed_ > 0) fixed_ = std::move(sys_.fixed);
+  std::vector<std::uint8_t>().swap(sys_.fixed);
+  acc_.assign(N_, Vec<D>::Zero());
+  f_.assign(N_, Vec<D>::Zero());
+  if (rot_) {
+    alpha_.assign(N_, Spin<D>::Zero());
+    tq_.assign(N_, Spin<D>::Zero());
   }
 
   uniform_ = N_ > 0;
@@ -439,7 +445,7 @@ bool TdmEngine<D>::scan_outlets() {
     rec.mass = m_[i];
     rec.x = sys_.wrapped(x_[i]);
     rec.v = v_[i];
-    rec.w = w_[i];
+    rec.w = spins_ ? w_[i] : Spin<D>(Spin<D>::Zero());
     for (auto* ob : obs_) ob->on_outflow(rec);
   }
   return any;
@@ -453,7 +459,8 @@ void TdmEngine<D>::drop_gone() {
     if (gone_[i]) continue;
     if (m != i) {
       x_[m] = x_[i]; v_[m] = v_[i]; acc_[m] = acc_[i]; f_[m] = f_[i];
-      w_[m] = w_[i]; alpha_[m] = alpha_[i]; tq_[m] = tq_[i];
+      if (spins_) w_[m] = w_[i];
+      if (rot_) { alpha_[m] = alpha_[i]; tq_[m] = tq_[i]; }
       R_[m] = R_[i]; m_[m] = m_[i]; minv_[m] = minv_[i]; iinv_[m] = iinv_[i];
       mat_[m] = mat_[i]; id_[m] = id_[i];
       if (n_fixed_ > 0) fixed_[m] = fixed_[i];
@@ -462,12 +469,26 @@ void TdmEngine<D>::drop_gone() {
   }
   N_ = m;
   for (auto* a : {&x_, &v_, &acc_, &f_}) a->resize(N_);
-  for (auto* a : {&w_, &alpha_, &tq_}) a->resize(N_);
+  if (spins_) w_.resize(N_);
+  if (rot_) for (auto* a : {&alpha_, &tq_}) a->resize(N_);
   for (auto* a : {&R_, &m_, &minv_, &iinv_}) a->resize(N_);
   mat_.resize(N_);
   id_.resize(N_);
   if (n_fixed_ > 0) fixed_.resize(N_);
   gone_.assign(N_, 0);
+}
+
+// At the end of the run: frees what the final state (snapshot()) does not read: the lists, the
+// cells, the threads' scratch, the arrays only a step uses.
+template <int D>
+void TdmEngine<D>::release_working_arrays() {
+  auto drop = [](auto& a) { std::decay_t<decltype(a)>().swap(a); };
+  drop(acc_); drop(x0_); drop(alpha_); drop(m_);
+  drop(off_); drop(nb_); drop(nb_t_); drop(sh_t_); drop(sh_); drop(touch_); drop(xi_); drop(mr_);
+  drop(wl_i_); drop(wl_w_); drop(wl_f_); drop(wl_touch_); drop(wl_xi_); drop(wl_mr_);
+  drop(cell_of_); drop(cell_start_); drop(order_);
+  drop(spill_); drop(batch_); drop(boundary_); drop(boundary_list_); drop(gone_);
+  springs_.release();
 }
 
 // After a step: the inlets' grains due by now enter (engine/inlet.hpp) where place_free finds room,
@@ -489,9 +510,11 @@ bool TdmEngine<D>::insert_due() {
       v_.push_back(v - hdt_ * g_);
       acc_.push_back(g_);
       f_.push_back(Vec<D>::Zero());
-      w_.push_back(Spin<D>::Zero());
-      alpha_.push_back(Spin<D>::Zero());
-      tq_.push_back(Spin<D>::Zero());
+      if (spins_) w_.push_back(Spin<D>::Zero());
+      if (rot_) {
+        alpha_.push_back(Spin<D>::Zero());
+        tq_.push_back(Spin<D>::Zero());
+      }
       R_.push_back(R);
       m_.push_back(m);
       minv_.push_back(1.0 / m);
@@ -550,7 +573,12 @@ void TdmEngine<D>::rebuild() {
   build_step_ = steps_;
   // 1. Remember touching contacts by particle ids (engine/soft/springs.hpp).
   soft::SpringMemory<D>& mem = springs_;
-  mem.clear();
+  {
+    const std::size_t built = n_built_ && !off_.empty() ? off_[n_built_] : 0;  // entries of the last build
+    auto on = [](std::uint8_t f) { return f != 0; };
+    mem.reserve(static_cast<std::size_t>(std::count_if(touch_.begin(), touch_.begin() + built, on)),
+                static_cast<std::size_t>(std::count_if(wl_touch_.begin(), wl_touch_.end(), on)));
+  }
   for (std::size_t i = 0; i < n_built_ && !off_.empty(); ++i)  // the rows of the last build (grains inserted since come after)
     for (std::uint32_t e = off_[i]; e < off_[i + 1]; ++e)
       if (touch_[e])
@@ -598,22 +626,28 @@ void TdmEngine<D>::rebuild() {
     std::vector<std::uint32_t> fill(cell_start_.begin(), cell_start_.end() - 1);
     for (std::size_t i = 0; i < N_; ++i) order_[fill[cell_of_[i]]++] = static_cast<std::uint32_t>(i);
   }
-  auto permute = [&](auto& a, auto& scratch) {
-    scratch.resize(N_);
-    for (std::size_t k = 0; k < N_; ++k) scratch[k] = a[order_[k]];
-    a.swap(scratch);
+  // f_ and tq_ are zero between steps (integrate() clears them), so they need no permutation, and
+  // f_ is the scratch the vector arrays are gathered into (no array kept for the sort alone); the
+  // other arrays go through one temporary of their type at a time (at most 8 bytes a particle).
+  auto permute = [&](auto& a) {
+    using T = typename std::decay_t<decltype(a)>::value_type;
+    if constexpr (std::is_same_v<T, Vec<D>>) {
+      for (std::size_t k = 0; k < N_; ++k) f_[k] = a[order_[k]];
+      a.swap(f_);
+    } else {
+      std::vector<T> t(N_);
+      for (std::size_t k = 0; k < N_; ++k) t[k] = a[order_[k]];
+      a.swap(t);
+    }
   };
-  permute(x_, scratch_vec_); permute(v_, scratch_vec_); permute(acc_, scratch_vec_);
-  permute(w_, scratch_spin_);
-  if (rot_) { permute(alpha_, scratch_spin_); }
-  permute(R_, scratch_dbl_); permute(m_, scratch_dbl_); permute(minv_, scratch_dbl_); permute(iinv_, scratch_dbl_);
-  permute(mat_, scratch_int_); permute(id_, scratch_u32_);
-  if (n_fixed_ > 0) {
-    scratch_u8_.resize(N_);
-    for (std::size_t k = 0; k < N_; ++k) scratch_u8_[k] = fixed_[order_[k]];
-    fixed_.swap(scratch_u8_);
-  }
-  // f_ and tq_ are zero between steps (integrate() clears them), so they need no permutation.
+  f_.resize(N_);
+  permute(x_); permute(v_); permute(acc_);
+  if (spins_) permute(w_);
+  if (rot_) permute(alpha_);
+  permute(R_); permute(m_); permute(minv_); permute(iinv_);
+  permute(mat_); permute(id_);
+  if (n_fixed_ > 0) permute(fixed_);
+  std::fill(f_.begin(), f_.end(), Vec<D>::Zero());
   x0_ = x_;
 
   // 4. Half list: pairs within R_i + R_j + skin, each once: in the own cell j > i, and the
@@ -700,10 +734,20 @@ void TdmEngine<D>::rebuild() {
           if (rot_) xi_[e] = spring;
         }
   };
+  // The entries' flags and springs, sized to the list without keeping the old ones (recall() sets
+  // them all): a list grown past their storage gets it anew with an eighth to spare, not doubled as
+  // a resize would (a spring is 24 bytes an entry in 3D).
   auto size_entries = [&] {
-    touch_.resize(nb_.size());
-    if (rot_) xi_.resize(nb_.size());
-    if (epsd_) mr_.resize(nb_.size());
+    auto fit = [n = nb_.size()](auto& a) {
+      if (a.capacity() < n) {
+        std::decay_t<decltype(a)>().swap(a);
+        a.reserve(n + n / 8);
+      }
+      a.resize(n);
+    };
+    fit(touch_);
+    if (rot_) fit(xi_);
+    if (epsd_) fit(mr_);
   };
   if (T_ == 1) {
     make_rows(0, static_cast<std::uint32_t>(N_), nb_, sh_);
@@ -880,10 +924,13 @@ inline void TdmEngine<D>::wall_contact_force(std::uint32_t e, Acc& acc, WallLoad
   const int w = static_cast<int>(wl_w_[e]);
   bool began = false;
   Vec<D> no_spring = Vec<D>::Zero();
+  Spin<D> no_spin = Spin<D>::Zero(), no_torque = Spin<D>::Zero();  // without rotation (no such arrays)
   const soft::WallContact<D> c = walls_.with_wall(w, wl_f_[e], [&](const auto& shape) {
-    return soft::wall_contact<D, Law, Rot, Roll>(shape, wall_t_, dt_, !initial_, x_[i], R_[i], v_[i], acc_[i], w_[i],
-                                           alpha_[i], Uniform ? cwall_[w] : wall_coeffs(w, i), wl_touch_[e],
-                                           Rot ? wl_xi_[e] : no_spring, began, f_[i], tq_[i],
+    return soft::wall_contact<D, Law, Rot, Roll>(shape, wall_t_, dt_, !initial_, x_[i], R_[i], v_[i], acc_[i],
+                                           Rot ? w_[i] : no_spin, Rot ? alpha_[i] : no_spin,
+                                           Uniform ? cwall_[w] : wall_coeffs(w, i),
+                                           wl_touch_[e], Rot ? wl_xi_[e] : no_spring, began, f_[i],
+                                           Rot ? tq_[i] : no_torque,
                                            epsd_ ? &wl_mr_[e] : nullptr);
   });
   if (began) ++acc.new_wall;
@@ -1192,15 +1239,14 @@ RunResult<D> TdmEngine<D>::run() {
   if (!resuming && (N_ > 0 || !clocks_.empty())) {
     rebuild();
     if (status_ == "ok") {
-      // Forces at t = 0 give a(0) only: contacts that exist at t = 0 keep their springs unstretched.
-      const std::vector<Vec<D>> xi0 = xi_, wxi0 = wl_xi_;
-      const std::vector<Spin<D>> mr0 = mr_, wmr0 = wl_mr_;
+      // Forces at t = 0 give a(0) only: contacts that exist at t = 0 keep their springs unstretched
+      // (zero: the first list recalls none).
       forces(false);
       initial_ = false;
-      xi_ = xi0;
-      wl_xi_ = wxi0;
-      mr_ = mr0;
-      wl_mr_ = wmr0;
+      std::fill(xi_.begin(), xi_.end(), Vec<D>::Zero());
+      std::fill(wl_xi_.begin(), wl_xi_.end(), Vec<D>::Zero());
+      std::fill(mr_.begin(), mr_.end(), Spin<D>::Zero());
+      std::fill(wl_mr_.begin(), wl_mr_.end(), Spin<D>::Zero());
       check_stable();
       // v holds v(t - h/2) between steps.
       for (std::size_t i = 0; i < N_; ++i)
@@ -1248,6 +1294,10 @@ RunResult<D> TdmEngine<D>::run() {
   res.time = step_time(steps_);
   res.counts.pair = pair_begun_;
   res.counts.wall = wall_begun_;
+  SoftStats& s = res.soft;
+  for (auto f : touch_) s.contacts += f;
+  for (auto f : wl_touch_) s.contacts += f;
+  release_working_arrays();  // before the final state is gathered: the run's peak stays the steps'
   Snapshot<D> last = snapshot(res.time);  // the final state in particle-id order
   res.id = std::move(last.id);
   res.x = std::move(last.x);
@@ -1267,14 +1317,11 @@ RunResult<D> TdmEngine<D>::run() {
   for (const auto& c : clocks_) res.inlets.push_back(c.report());
   res.max_overlap = max_abs_;
   res.max_overlap_relative = max_rel_;
-  SoftStats& s = res.soft;
   s.steps = steps_;
   s.dt = dt_;
   record_plan(s, plan_);
   s.skin = skin_;
   s.rebuilds = rebuilds_;
-  for (auto f : touch_) s.contacts += f;
-  for (auto f : wl_touch_) s.contacts += f;
   s.threads = T_;
   res.wall_seconds = std::chrono::duration<double>(Clock::now() - t0).count();
   s.particle_steps_per_second =

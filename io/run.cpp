@@ -563,7 +563,8 @@ std::string describe(const Scene& scene, const System<D>& sys) {
     // rules the engine applies (engine/edm/neighbours.hpp): the moving grains' packing decides "auto".
     const double phi = sys.moving_packing();
     const bool automatic = scene.neighbours == "auto";
-    const bool lists = edm::lists_chosen(scene.neighbours == "lists", automatic, phi, sys.gravity.squaredNorm() > 0.0);
+    const bool lists =
+        edm::lists_chosen(scene.neighbours == "lists", automatic, phi, sys.gravity.squaredNorm() > 0.0, sys.size());
     s += fmt::format("pair search  {}{}\n",
                      lists ? fmt::format("neighbour lists, shells of {} largest diameters", scene.shell)
                            : std::string("cells"),

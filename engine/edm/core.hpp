@@ -230,7 +230,8 @@ class EdmCore {
     }
     setup_rough(rough);
     const double margin = derived().ext_cell_margin();
-    lists_ = lists_chosen(set_.lists, set_.lists_auto, packing, gravity_) && derived().ext_lists();
+    lists_ = lists_chosen(set_.lists, set_.lists_auto, packing, gravity_, static_cast<std::size_t>(N_)) &&
+             derived().ext_lists();
     sphere_ = lists_ && !gravity_;
     if (lists_) {
       shell_ = set_.shell * 2.0 * rmax;
@@ -437,7 +438,6 @@ class EdmCore {
       a.same(shell_c_, "particle slots");
       a(nb_cap_);
       a(nb_);
-      a(nb_sh_);
       a.same(nb_n_, "particle slots");
     }
     a.tag("edm.order");
@@ -611,7 +611,7 @@ class EdmCore {
   void for_list(int i, F&& f) const {
     const std::size_t b = static_cast<std::size_t>(i) * nb_cap_;
     for (int m = 0, n = nb_n_[i]; m < n; ++m)
-      f(nb_[b + m], any_periodic_ ? Vec<D>(-shifts_[nb_sh_[b + m]]) : Vec<D>(Vec<D>::Zero()));
+      f(nb_id(nb_[b + m]), any_periodic_ ? Vec<D>(-shifts_[nb_shift(nb_[b + m])]) : Vec<D>(Vec<D>::Zero()));
   }
 
   // ---- re-sorting (EdmSettings::resort) ----------------------------------------------------------
@@ -686,12 +686,11 @@ class EdmCore {
       const std::size_t cap = static_cast<std::size_t>(nb_cap_);
       permute(shell_c_);
       permute(nb_, cap);
-      permute(nb_sh_, cap);
       permute(nb_n_);
       for (std::size_t k = 0; k < n; ++k)
         for (std::size_t m = 0; m < nb_n_[k]; ++m) {
-          int& j = nb_[k * cap + m];
-          j = static_cast<int>(to[static_cast<std::size_t>(j)]);
+          std::uint32_t& e = nb_[k * cap + m];
+          e = nb_entry(static_cast<int>(to[static_cast<std::size_t>(nb_id(e))]), nb_shift(e));
         }
     }
     derived().ext_permute(permute, to);
@@ -742,9 +741,18 @@ class EdmCore {
     double R;
   };
   Array<Shell> shell_c_;      // shells
-  Array<int> nb_;             // list of i: nb_[i * nb_cap_ + m], m < nb_n_[i]
-  Array<std::uint8_t> nb_sh_; // its image shift index (CellGrid::shift_index), periodic scenes only
-  Array<std::uint16_t> nb_n_;
+  // List of i: nb_[i * nb_cap_ + m], m < nb_n_[i]; each entry the partner's index and, above it,
+  // its image shift index (CellGrid::shift_index; read in periodic scenes only) in one word
+  // (engine/edm/neighbours.hpp kListIdBits): one load per candidate, 4 bytes an entry.
+  Array<std::uint32_t> nb_;
+  Array<std::uint16_t> nb_n_;  // entries in i's list
+  static constexpr std::uint32_t kIdMask = (std::uint32_t{1} << kListIdBits) - 1;
+  static_assert(CellGrid<D>::kStencil <= (1 << (32 - kListIdBits)), "an image shift index fits above the index");
+  static int nb_id(std::uint32_t e) { return static_cast<int>(e & kIdMask); }
+  static std::uint8_t nb_shift(std::uint32_t e) { return static_cast<std::uint8_t>(e >> kListIdBits); }
+  static std::uint32_t nb_entry(int j, std::uint8_t sh) {
+    return static_cast<std::uint32_t>(j) | (static_cast<std::uint32_t>(sh) << kListIdBits);
+  }
   std::array<Vec<D>, CellGrid<D>::kStencil> shifts_{};  // shift_table(): added to x_i - x_j
   bool any_periodic_ = false;
 
@@ -767,8 +775,7 @@ class EdmCore {
   void nb_append(int i, int j, std::uint8_t sh) {
     if (nb_n_[i] == nb_cap_) nb_grow();
     const std::size_t at = static_cast<std::size_t>(i) * nb_cap_ + nb_n_[i];
-    nb_[at] = j;
-    if (any_periodic_) nb_sh_[at] = sh;
+    nb_[at] = nb_entry(j, sh);
     ++nb_n_[i];
   }
   // Gives every list 16 more entries (rare: a list longer than any before). Whole cache lines of
@@ -777,28 +784,23 @@ class EdmCore {
   void nb_grow() {
     const int cap = nb_cap_ + 16;
     if (cap > 65535) throw std::runtime_error("a neighbour list would exceed 65535 entries: use a smaller run.shell");
-    Array<int> nb(static_cast<std::size_t>(N_) * cap, -1);
-    Array<std::uint8_t> sh(any_periodic_ ? static_cast<std::size_t>(N_) * cap : 0, 0);
+    Array<std::uint32_t> nb(static_cast<std::size_t>(N_) * cap, 0);
     for (int i = 0; i < N_; ++i)
-      for (int m = 0; m < nb_n_[i]; ++m) {
+      for (int m = 0; m < nb_n_[i]; ++m)
         nb[static_cast<std::size_t>(i) * cap + m] = nb_[static_cast<std::size_t>(i) * nb_cap_ + m];
-        if (any_periodic_) sh[static_cast<std::size_t>(i) * cap + m] = nb_sh_[static_cast<std::size_t>(i) * nb_cap_ + m];
-      }
     nb_.swap(nb);
-    nb_sh_.swap(sh);
     nb_cap_ = cap;
   }
   // Takes i out of its list and of its neighbours' lists (swap with the last entry).
   void unlist(int i) {
     const std::size_t bi = static_cast<std::size_t>(i) * nb_cap_;
     for (int m = 0; m < nb_n_[i]; ++m) {
-      const int j = nb_[bi + m];
+      const int j = nb_id(nb_[bi + m]);
       const std::size_t bj = static_cast<std::size_t>(j) * nb_cap_;
       const int last = nb_n_[j] - 1;
       for (int q = 0; q <= last; ++q)
-        if (nb_[bj + q] == i) {
+        if (nb_id(nb_[bj + q]) == i) {
           nb_[bj + q] = nb_[bj + last];
-          if (any_periodic_) nb_sh_[bj + q] = nb_sh_[bj + last];
           break;
         }
       --nb_n_[j];
@@ -954,16 +956,16 @@ class EdmCore {
     const double Ri = hi.R;
     const std::uint8_t* const fixed = n_fixed_ > 0 ? fixed_.data() : nullptr;
     const std::size_t b = static_cast<std::size_t>(i) * nb_cap_;
-    const int* const L = nb_.data() + b;
+    const std::uint32_t* const L = nb_.data() + b;
     const int n = nb_n_[i];
-    for (int m = 0; m < n; ++m) __builtin_prefetch(&hot_[L[m]]);
+    for (int m = 0; m < n; ++m) __builtin_prefetch(&hot_[nb_id(L[m])]);
     for (int m = 0; m < n; ++m) {
-      const int j = L[m];
+      const int j = nb_id(L[m]);
       const Hot<D>& hj = hot_[j];
       Vec<D> r = xi - hj.x;
-      if (any_periodic_) r += shifts_[nb_sh_[b + m]];
+      if (any_periodic_) r += shifts_[nb_shift(L[m])];
       if (fixed && fixed[j]) [[unlikely]] {
-        test_fixed(xi, vi, Ri, j, any_periodic_ ? Vec<D>(-shifts_[nb_sh_[b + m]]) : Vec<D>(Vec<D>::Zero()), best,
+        test_fixed(xi, vi, Ri, j, any_periodic_ ? Vec<D>(-shifts_[nb_shift(L[m])]) : Vec<D>(Vec<D>::Zero()), best,
                    type, partner);
         continue;
       }

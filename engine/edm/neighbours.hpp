@@ -18,9 +18,14 @@ inline constexpr double kListsFromPacking = 0.45;
 // domain's), without gravity (under gravity the shells are cubes, which lost to the cells in both
 // gases measured, packing 0.26 and 0.445).
 inline bool lists_pay(double packing, bool gravity) { return !gravity && packing >= kListsFromPacking; }
-// Whether a run takes the lists: asked for (run.neighbours = "lists"), or "auto" where they pay.
-inline bool lists_chosen(bool lists, bool automatic, double packing, bool gravity) {
-  return lists || (automatic && lists_pay(packing, gravity));
+// A list entry holds its partner's index and image shift in one 32-bit word (engine/edm/core.hpp
+// nb_), the index in the low kListIdBits bits: lists serve runs of up to kListsUpTo particle slots.
+inline constexpr unsigned kListIdBits = 27;
+inline constexpr std::size_t kListsUpTo = (std::size_t{1} << kListIdBits) - 1;
+// Whether a run of n particle slots takes the lists: asked for (run.neighbours = "lists"), or
+// "auto" where they pay; never above kListsUpTo (the cells then).
+inline bool lists_chosen(bool lists, bool automatic, double packing, bool gravity, std::size_t n) {
+  return n <= kListsUpTo && (lists || (automatic && lists_pay(packing, gravity)));
 }
 
 // Re-sorting the particles' storage in space (engine/edm/core.hpp "re-sorting"): from how many

@@ -190,6 +190,17 @@ TEST(EdmLists, AutoChoosesListsForADenseGasWithoutGravityOnly) {
   }
 }
 
+// A list entry packs its partner's index into kListIdBits bits: a run with more particle slots
+// than they can number takes the cells, whatever was asked.
+TEST(EdmLists, ARunTooLargeForTheListsEntriesTakesTheCells) {
+  EXPECT_EQ(edm::kListsUpTo, (std::size_t{1} << 27) - 1);
+  EXPECT_TRUE(edm::lists_chosen(true, false, 0.1, true, edm::kListsUpTo));
+  EXPECT_FALSE(edm::lists_chosen(true, false, 0.1, true, edm::kListsUpTo + 1));
+  EXPECT_TRUE(edm::lists_chosen(false, true, 0.48, false, edm::kListsUpTo));
+  EXPECT_FALSE(edm::lists_chosen(false, true, 0.48, false, edm::kListsUpTo + 1));
+  EXPECT_FALSE(edm::lists_chosen(false, false, 0.48, false, 1000));
+}
+
 TEST(EdmLists, SceneKeys) {
   using test::small_gas_scene;
   const Scene a = load_scene_string(small_gas_scene("neighbours = \"auto\"\nshell = 0.3\n"), "s.toml", ".", {});

@@ -573,7 +573,8 @@ std::string describe(const Scene& scene, const System<D>& sys) {
                                              edm::kListsFromPacking)
                                : std::string());
     const bool hybrid = scene.method == Method::Hybrid;
-    const double every = hybrid && scene.resort < 0.0 ? 0.0 : edm::resort_interval(scene.resort, sys.size(), phi);
+    const double every =
+        edm::resort_interval(hybrid ? edm::hybrid_resort(scene.resort) : scene.resort, sys.size(), phi);
     s += fmt::format("storage      {}\n",
                      every > 0.0 ? fmt::format("re-sorted in space every {} particle events per particle{}", every,
                                                hybrid ? " while no grain is soft" : "")

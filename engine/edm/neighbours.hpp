@@ -46,6 +46,12 @@ inline double resort_interval(double resort, std::size_t n, double packing) {
   return n >= static_cast<std::size_t>(kResortFrom) && packing < kResortBelowPacking ? kResortEvery : 0.0;
 }
 
+// The hybrid's run.resort: "auto" (< 0) is never. It starts in space order (engine/renumber.hpp),
+// and re-sorting a million-grain gas every 8 events per particle made it 1.08-1.17 x slower (0.62 s
+// a re-sort against EDM's 0.23 s: it permutes its own arrays too; bench/README.md "Re-sorting the
+// EDM storage").
+inline double hybrid_resort(double resort) { return resort < 0.0 ? 0.0 : resort; }
+
 // The Z (Morton) order's key of a cell's coordinates (each below 2^21 in 3D, 2^32 in 2D): their
 // bits interleaved, axis 0 lowest, so that cells near in space are mostly near in the order
 // (Morton 1966; the shift-and-mask spreading of each coordinate's bits is the standard one).

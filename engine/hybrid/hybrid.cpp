@@ -154,10 +154,7 @@ class HybridEngine final : public edm::EdmCore<D, CalendarQueue, HybridEngine<D>
   // ---- hooks of the EDM core ----
   void ext_setup() {
     hybrid_setup(given_settings_, given_plan_);
-    // run.resort = "auto" does not re-sort the hybrid: it starts in space order (renumber.hpp), and
-    // re-sorting a million-grain gas every 8 events per particle made it 1.08-1.17 x slower
-    // (0.62 s a re-sort, against EDM's 0.23 s: its own arrays; bench/README.md).
-    if (set_.resort < 0.0) set_.resort = 0.0;
+    set_.resort = edm::hybrid_resort(set_.resort);  // "auto": never
   }
   // With neighbour lists (run.neighbours) every grain keeps a shell and a list, soft and sleeping
   // ones too: a grain released hard then has its list, and a soft grain that leaves its shell gets

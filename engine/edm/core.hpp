@@ -118,10 +118,8 @@ class EdmCore {
   // hybrid: its largest capture distance, so that a hard grain that may be captured by a soft one
   // finds it in its list).
   double ext_list_margin() const { return 0.0; }
-  // Whether the core may re-sort the particles' storage (EdmSettings::resort).
-  bool ext_resort() const { return true; }
-  // Whether it may re-sort now (the hybrid: only while no grain is soft, pending or asleep); if
-  // not, the re-sort waits for the next one due.
+  // Whether the core may re-sort the particles' storage now (EdmSettings::resort; the hybrid: only
+  // while no grain is soft, pending or asleep); if not, the re-sort waits for the next one due.
   bool ext_can_resort() const { return true; }
   // The extension's own arrays by particle index, permuted with the core's: permute(array) moves
   // row i to to[i] (an array not of N_ rows is left alone), and to[] renames a stored index.
@@ -242,7 +240,7 @@ class EdmCore {
       build_cells(2.0 * rmax, margin);
     }
     derived().ext_cells_ready(rmax);
-    const double every = derived().ext_resort() ? resort_interval(set_.resort, static_cast<std::size_t>(N0_), packing) : 0.0;
+    const double every = resort_interval(set_.resort, static_cast<std::size_t>(N0_), packing);
     resort_step_ = every > 0.0 ? std::max<std::uint64_t>(1, static_cast<std::uint64_t>(every * N0_)) : 0;
   }
 
@@ -444,7 +442,7 @@ class EdmCore {
     a(ids_->entries());
     a(resorts_);
     if constexpr (A::loading)
-      if (derived().ext_resort() && ids_ == &own_ids_ && !ids_->entries().empty())
+      if (ids_ == &own_ids_ && !ids_->entries().empty())
         throw StateError("the engine state is of a run that re-sorts its particles (run.resort) and this run reports in the engine's order");
     a.tag("edm.flows");
     a(removed_);

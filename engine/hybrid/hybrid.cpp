@@ -168,7 +168,6 @@ class HybridEngine final : public edm::EdmCore<D, CalendarQueue, HybridEngine<D>
   // set keeps by index is its per-grain arrays (permuted with the core's: ext_permute) and the
   // switching rule's memory of partners; its lists, springs, groups and sleepers are empty. A
   // re-sort due while grains are soft waits for the next one due.
-  bool ext_resort() const { return true; }
   bool ext_can_resort() const {
     return soft_.empty() && pending_.empty() && asleep_ == 0 && asleep_list_.empty() && iface_.empty() &&
            pairs_.size() == 0 && we_.empty() && pe_sleep_.empty() && we_sleep_.empty() && watched_.empty() &&

@@ -164,6 +164,7 @@ class SwitchRule {
   double crossover_rate() const { return 1.0 / p_.cost_interval; }
   // The partner of i's collision before its latest one (-1 if none).
   int earlier_partner(int i) const { return recent_[i][1]; }
+  int recent(int i, int k) const { return recent_[i][k]; }
   int rapid_count(int i) const { return rapid_[i]; }
 
  private:

@@ -749,7 +749,9 @@ class HybridEngine final : public edm::EdmCore<D, CalendarQueue, HybridEngine<D>
   bool sequence_goes_on(int a, int b, int p, const Vec<D>& va, const Vec<D>& vb, double t, double dt1,
                         double window) {
     if (mode_[p] != kHard) return true;
-    const auto vel = [&](int k) { return this->flies(k) ? Vec<D>(hot_[k].v + this->g_ * (t - hot_[k].t)) : Vec<D>(hot_[k].v); };
+    const auto vel = [&](int k) {  // k's velocity at t
+      return this->flies(k) ? Vec<D>(hot_[k].v + this->g_ * (t - hot_[k].t)) : Vec<D>(hot_[k].v);
+    };
     const auto sep = [&](int x, int y) {  // x's centre from y's at t, nearest image
       Vec<D> r = this->position_at(x, t) - this->position_at(y, t);
       min_image(r);

@@ -384,7 +384,8 @@ def main(argv=None):
     ap.add_argument("--quick", action="store_true", help="a 2 x 2 map of 108 particles, 2 seeds (the test suite's mode)")
     ap.add_argument("--work", default=None, help="keep the runs' outputs in this folder (default: a temporary one)")
     ap.add_argument("--plot-only", action="store_true", help="redraw the PNGs from the CSV in --out, running nothing")
-    ap.add_argument("--gravity", choices=["both", "off", "on"], default="both", help="which half of the map to run")
+    ap.add_argument("--gravity", choices=["both", "off", "on"], default="both",
+                    help="which half of the map to run (the other half's rows in --out's CSV are kept)")
     ap.add_argument("--repeat", type=int, default=1,
                     help="runs per seed, each with a memory layout of its own; the wall time is their median "
                          "(use 3 or more to compare versions: a single run varies by up to 40 %%)")
@@ -447,6 +448,13 @@ def main(argv=None):
         write_csv(cells_path, FIELDS, rows)
         print(f"wrote {cells_path}")
         return
+    if args.gravity != "both" and csv_path.exists():
+        # One half run: the other half's rows in the CSV are kept, so the map stays whole.
+        ran = {int(g) for g in gravities}
+        kept = [r for r in read_rows(csv_path) if int(r["gravity"]) not in ran]
+        rows = sorted(kept + rows, key=lambda r: int(r["gravity"]))
+        if kept:
+            print(f"kept the other half's {len(kept)} rows of {csv_path}")
     write_csv(csv_path, FIELDS, rows)
     plot(rows, es, phis, png_path, subtitle)
     plot_ratio(rows, es, phis, ratio_path, subtitle)

@@ -180,6 +180,15 @@ def check_map(matep, out, hybrid_refused):
                            f"{here}: ratio {hyb['ratio']} is not the hybrid's time over {min(best)}")
     check_png(out / "stability_map.png")
     check_png(out / "stability_map_ratio.png")
+    # One half run again (--gravity off): the other half's rows are kept as they were.
+    lines = (out / "stability_map.csv").read_text().splitlines()
+    run_tool([REPO / "tools/stability_map.py", "--matep", matep, "--out", out, "--quick", "--gravity", "off"])
+    again = (out / "stability_map.csv").read_text().splitlines()
+    expect(again[0] == lines[0] and [x for x in again if x.startswith("1,")] == [x for x in lines if x.startswith("1,")]
+           and sum(x.startswith("1,") for x in lines) > 0,
+           "--gravity off: the gravity half's rows were not kept as they were")
+    expect(sum(x.startswith("0,") for x in again) == sum(x.startswith("0,") for x in lines),
+           "--gravity off: the free half's rows were not replaced one for one")
     # A few cells with more seeds (--cells, --seeds): their own CSV, the map's left as it was.
     before = (out / "stability_map.csv").read_bytes()
     run_tool([REPO / "tools/stability_map.py", "--matep", matep, "--out", out, "--quick", "--gravity", "off",

@@ -850,6 +850,11 @@ class EdmCore {
     const double dt = flies(i) ? t - h.t : 0.0;
     return h.x + h.v * dt + (0.5 * dt * dt) * g_;
   }
+  // Its velocity at time t, likewise.
+  Vec<D> velocity_at(int i, double t) const {
+    const Hot<D>& h = hot_[i];
+    return flies(i) ? Vec<D>(h.v + g_ * (t - h.t)) : h.v;
+  }
   void advance(int i, double t) {
     if (!flies(i)) return;  // fixed, or moved by an extension (the hybrid's substeps)
     Hot<D>& h = hot_[i];

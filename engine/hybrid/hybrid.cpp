@@ -749,37 +749,30 @@ class HybridEngine final : public edm::EdmCore<D, CalendarQueue, HybridEngine<D>
   bool sequence_goes_on(int a, int b, int p, const Vec<D>& va, const Vec<D>& vb, double t, double dt1,
                         double window) {
     if (mode_[p] != kHard) return true;
-    const auto vel = [&](int k) {  // k's velocity at t
-      return this->flies(k) ? Vec<D>(hot_[k].v + this->g_ * (t - hot_[k].t)) : Vec<D>(hot_[k].v);
-    };
     const auto sep = [&](int x, int y) {  // x's centre from y's at t, nearest image
       Vec<D> r = this->position_at(x, t) - this->position_at(y, t);
       min_image(r);
       return r;
     };
-    Vec<D> vp = vel(p);
-    Vec<D> rap = sep(a, p) + (va - vp) * dt1;
+    const Vec<D> vp0 = this->velocity_at(p, t);
+    const Vec<D> rap = sep(a, p) + (va - vp0) * dt1;
     const double dist = rap.norm();
     if (!(dist > 0.0)) return true;
     const Vec<D> n = rap / dist;
-    const double u = (va - vp).dot(n);
+    const double u = (va - vp0).dot(n);
     if (!(u < 0.0)) return true;
-    Vec<D> va2 = va;
+    Vec<D> va2 = va, vp = vp0;
     smooth_pair_collision(va2, vp, mass(a), mass(p), n, this->restitution(cold_[a].mat, cold_[p].mat, -u));
     const double limit = std::min(window, kLookaheadGoesOn * dt1);
-    {
-      const Vec<D> rab = sep(a, b) + (va - vb) * dt1;
-      if (pair_collision_time(rab, Vec<D>(va2 - vb), hot_[a].R + hot_[b].R, limit) < limit) return true;
-    }
-    for (int k = 0; k < 2; ++k) {
-      const int q = switch_.recent(p, k);
-      if (q < 0 || q == a || q == b || mode_[q] != kHard) continue;
-      const Vec<D> vq = vel(q);
-      const Vec<D> rpq = sep(p, q) + (vel(p) - vq) * dt1;
-      if (pair_collision_time(rpq, Vec<D>(vp - vq), hot_[p].R + hot_[q].R, limit) < limit) return true;
-      break;
-    }
-    return false;
+    const Vec<D> rab = sep(a, b) + (va - vb) * dt1;
+    if (pair_collision_time(rab, Vec<D>(va2 - vb), hot_[a].R + hot_[b].R, limit) < limit) return true;
+    // q: the latest of p's two recent partners that is hard and neither a nor b.
+    const auto hard_other = [&](int c) { return c >= 0 && c != a && c != b && mode_[c] == kHard; };
+    const int q = hard_other(switch_.recent(p, 0)) ? switch_.recent(p, 0) : switch_.recent(p, 1);
+    if (!hard_other(q)) return false;
+    const Vec<D> vq = this->velocity_at(q, t);
+    const Vec<D> rpq = sep(p, q) + (vp0 - vq) * dt1;
+    return pair_collision_time(rpq, Vec<D>(vp - vq), hot_[p].R + hot_[q].R, limit) < limit;
   }
 
   bool soft_rule_wall(int i, int w, double t) {

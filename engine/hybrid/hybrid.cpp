@@ -66,10 +66,12 @@ Skins hybrid_skins(const System<D>& sys, const SoftPlan& plan, const HybridSetti
   // The capture distance of a pair at the largest expected impact speed (each grain at most that
   // fast): capture_gap's formula with speed = impact_speed and vsoft_max = impact_speed.
   s.capture_max = std::max(s.capture, 2.0 * h * (3.0 * plan.impact_speed + sys.gravity.norm() * h));
-  // The Verlet list of the soft set takes the TDM engine's skin, 0.1 d (a wider one saved
-  // rebuilds in the pour but widened the EDM cells, whose width is the list's cut-off: 10 %
-  // slower hard predictions in a gas), and at least the largest capture distance (a captured
-  // grain's entries must reach its soft neighbours).
+  // The Verlet list of the soft set takes the TDM engine's skin, 0.1 d, and at least the largest
+  // capture distance (a captured grain's entries must reach its soft neighbours). A wider skin
+  // (the EDM cells do not widen with it: ext_cell_margin) saves list builds where fast grains
+  // join a bed, but gives every substep of a dense soft bed more entries to walk: at 0.4 d the
+  // pour took 0.91 of its time and the stability map's dense cells 1.09-1.30 of theirs
+  // (bench/README.md, fourteenth sitting).
   s.list = std::max(s.capture_max, kListSkin * dmin);
   return s;
 }

@@ -150,9 +150,11 @@ void soft_set(int repeats, int threads, double steps, bool shuffle, bool verbose
     rh.push_back(hT[k] / h1[k]);
     rt.push_back(tT[k] / t1[k]);
   }
-  fmt::print("per round, {} threads / 1 thread: hybrid {:.3f} ({:.3f}-{:.3f}), TDM {:.3f} ({:.3f}-{:.3f})\n", threads,
-             median(rh), *std::min_element(rh.begin(), rh.end()), *std::max_element(rh.begin(), rh.end()), median(rt),
-             *std::min_element(rt.begin(), rt.end()), *std::max_element(rt.begin(), rt.end()));
+  auto spread = [](const std::vector<double>& v) {
+    const auto [lo, hi] = std::minmax_element(v.begin(), v.end());
+    return fmt::format("{:.3f} ({:.3f}-{:.3f})", median(v), *lo, *hi);
+  };
+  fmt::print("per round, {} threads / 1 thread: hybrid {}, TDM {}\n", threads, spread(rh), spread(rt));
 }
 
 }  // namespace

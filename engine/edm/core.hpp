@@ -100,6 +100,8 @@ class EdmCore {
   // A predicted collision of touching hard particles i and j (or i and wall w) at t: true when the
   // extension takes it over instead of the hard collision.
   bool ext_divert_pair(int, int, double) { return false; }
+  // A pair event of i and j is being handled: what ext_divert_pair will read may be fetched now.
+  void ext_prefetch_pair(int, int) {}
   bool ext_divert_wall(int, int, double) { return false; }
   void ext_snapshot(Snapshot<D>&) {}
   void ext_sample(ThermoSample&) {}
@@ -1164,6 +1166,7 @@ class EdmCore {
     switch (cold_[i].type) {
       case kPair: {
         const int j = cold_[i].partner;
+        derived().ext_prefetch_pair(i, j);
         advance(i, t);
         if (cold_[j].counter != cold_[i].pcount) {  // partner changed course: re-predict
           ++counts_.stale;

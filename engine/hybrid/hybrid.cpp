@@ -249,16 +249,24 @@ class HybridEngine final : public edm::EdmCore<D, CalendarQueue, HybridEngine<D>
   // Soft, pending and sleeping neighbours take no part in a hard particle's pair predictions (a
   // hard particle joins the soft set before it touches one); a soft or sleeping one makes it an
   // interface particle.
+  // (While every grain is hard, fixed or gone, which is most of a gas's run, no mode is read.)
   bool ext_skip_neighbour(int i, int j) {
-    if (mode_[j] == kHard) return false;
+    if (nonhard_ == 0 || mode_[j] == kHard) return false;
     if (mode_[j] != kPending) mark_interface(i);
     return true;
   }
-  void ext_on_predict(int i) {  // its course changed: capture check at the next substep
+  // Its course changed: an interface particle is checked for capture at the next substep (another
+  // one's check time is set when it becomes one: mark_interface).
+  void ext_on_predict(int i) {
+    if (!iface_flag_[i]) return;
     iface_next_[i] = 0.0;
-    if (iface_flag_[i]) due_now();
+    due_now();
   }
   bool ext_divert_pair(int i, int j, double t) { return soft_rule_pair(i, j, t); }
+  void ext_prefetch_pair(int i, int j) {
+    switch_.prefetch(i);
+    switch_.prefetch(j);
+  }
   bool ext_divert_wall(int i, int w, double t) { return soft_rule_wall(i, w, t); }
   // The EDM core's collapse watch fired for hard i at the collision just resolved: the group (i and
   // the partners of its collisions within the cluster window, this collision's among them) turns
@@ -463,6 +471,7 @@ class HybridEngine final : public edm::EdmCore<D, CalendarQueue, HybridEngine<D>
     near_.assign(N_, 0);
     switch_.reset(N_, switch_params_);
     mode_.assign(N_, kHard);
+    nonhard_ = 0;
     for (const int i : fixed_list_) mode_[i] = kFixed;  // (the interface list is empty yet)
     for (int i = 0; i < N_; ++i)
       if (this->is_removed(i)) mode_[i] = kGone;  // a slot an inlet fills later
@@ -487,9 +496,16 @@ class HybridEngine final : public edm::EdmCore<D, CalendarQueue, HybridEngine<D>
 
   double inv_mass(int i) const { return minv_[i]; }
 
+  // The modes whose grains a hard grain's predictions skip (ext_skip_neighbour): counted in nonhard_.
+  static bool counts_as_nonhard(std::uint8_t m) { return m == kSoft || m == kPending || m == kAsleep; }
+  void count_nonhard() {
+    nonhard_ = 0;
+    for (const std::uint8_t m : mode_) nonhard_ += counts_as_nonhard(m);
+  }
   // Every change of a grain's mode goes through here: an interface grain that is no longer hard
   // leaves the interface list at the next capture scan.
   void set_mode(int i, std::uint8_t m) {
+    nonhard_ += static_cast<int>(counts_as_nonhard(m)) - static_cast<int>(counts_as_nonhard(mode_[i]));
     mode_[i] = m;
     if (iface_flag_[i]) due_now();
   }
@@ -2644,6 +2660,7 @@ class HybridEngine final : public edm::EdmCore<D, CalendarQueue, HybridEngine<D>
     for (auto* v : {&pending_reason_, &touching_, &near_, &mode_, &iface_flag_, &cand_, &joined_by_, &fz_cand_,
                     &fz_lost_, &watch_flag_})
       a(*v);
+    if constexpr (A::loading) count_nonhard();
     for (auto* v : {&begun_n_, &held_, &gadj_}) a(*v);
     a(moved_);
     a(moved_w_);
@@ -2727,6 +2744,7 @@ class HybridEngine final : public edm::EdmCore<D, CalendarQueue, HybridEngine<D>
   std::vector<std::uint8_t> iface_flag_;  // a hard particle on the interface list
   std::vector<double> iface_next_;        // its next capture check (substep time)
   double iface_due_ = 0.0;                // the earliest iface_next_ of the list, or earlier
+  int nonhard_ = 0;                       // grains soft, pending or asleep (set_mode)
   double vsoft_max_ = 0.0;                // fastest awake soft particle at the last substep
   std::vector<int> region_;               // region_cheaper_soft's region
   std::vector<std::uint32_t> region_seen_;  // ... its members: region_stamp_ of the search

@@ -50,14 +50,7 @@ class SwitchRule {
   void reset(int n, const Params& p) {
     p_ = p;
     if (p_.repeats < 1) p_.repeats = 1;
-    rapid_.assign(n, 0);
-    ema_.assign(n, kNever);
-    prev_.assign(n, kNever);
-    prevu_.assign(n, kNever);
-    u0_.assign(n, 0.0);
-    seen_.assign(n, 0);
-    recent_.assign(n, {-1, -1});
-    recent_t_.assign(n, {-kNever, -kNever});
+    rec_.assign(n, Rec{});
   }
   const Params& params() const { return p_; }
   // The cost crossover changed during the run (hybrid.cost_ratio = "measured").
@@ -66,30 +59,16 @@ class SwitchRule {
   // the settings).
   template <class A>
   void archive(A& a) {
-    a(rapid_);
-    a(ema_);
-    a(prev_);
-    a(prevu_);
-    a(u0_);
-    a(seen_);
-    a(recent_);
-    a(recent_t_);
+    a(rec_);
   }
 
   // The histories under new particle indices (the engine re-sorted its storage): permute(v) moves
   // row i of a per-particle array to to[i]; the remembered partners are renamed.
   template <class Permute>
   void permute(Permute& permute, const std::vector<std::uint32_t>& to) {
-    permute(rapid_);
-    permute(ema_);
-    permute(prev_);
-    permute(prevu_);
-    permute(u0_);
-    permute(seen_);
-    permute(recent_);
-    permute(recent_t_);
-    for (auto& r : recent_)
-      for (int& j : r)
+    permute(rec_);
+    for (Rec& r : rec_)
+      for (int& j : r.recent)
         if (j >= 0) j = static_cast<int>(to[static_cast<std::size_t>(j)]);
   }
 
@@ -102,21 +81,22 @@ class SwitchRule {
   template <class Tc>
   Switch pair(int i, int j, double t, double last_i, double last_j, Tc&& contact_time, double u = 0.0,
               bool dissipative = true, bool ask_fall = true) {
+    Rec &ri = rec_[i], &rj = rec_[j];
     const double since = t - (last_i > last_j ? last_i : last_j);
     bool stability = false;
     if (!dissipative) {
-      rapid_[i] = rapid_[j] = 0;
+      ri.rapid = rj.rapid = 0;
     } else if (since < p_.hysteresis) {
       const double window = p_.stability * contact_time();
-      stability = rapid(i, t, last_i, window, u, ask_fall) | rapid(j, t, last_j, window, u, ask_fall);
+      stability = rapid(ri, t, last_i, window, u, ask_fall) | rapid(rj, t, last_j, window, u, ask_fall);
     }
-    if (!(since < p_.hysteresis)) rapid_[i] = rapid_[j] = 0;
-    note_interval(i, t, last_i, u);
-    note_interval(j, t, last_j, u);
+    if (!(since < p_.hysteresis)) ri.rapid = rj.rapid = 0;
+    note_interval(ri, t, last_i, u);
+    note_interval(rj, t, last_j, u);
     if (stability) return Switch::Stability;
-    if (cheaper_soft(i) || cheaper_soft(j)) return Switch::Cost;
-    note_partner(i, j, t);
-    note_partner(j, i, t);
+    if (cheaper_soft(ri) || cheaper_soft(rj)) return Switch::Cost;
+    note_partner(ri, j, t);
+    note_partner(rj, i, t);
     return Switch::Stay;
   }
 
@@ -124,48 +104,53 @@ class SwitchRule {
   template <class Tc>
   Switch wall(int i, double t, double last_i, bool resting, Tc&& contact_time, double u = 0.0,
               bool dissipative = true, bool ask_fall = true) {
+    Rec& ri = rec_[i];
     const double since = t - last_i;
     bool stability = resting;
-    if (!dissipative && !resting) rapid_[i] = 0;
-    else if (!stability && since < p_.hysteresis) stability = rapid(i, t, last_i, p_.stability * contact_time(), u, ask_fall);
-    if (!(since < p_.hysteresis)) rapid_[i] = 0;
-    note_interval(i, t, last_i, u);
+    if (!dissipative && !resting) ri.rapid = 0;
+    else if (!stability && since < p_.hysteresis) stability = rapid(ri, t, last_i, p_.stability * contact_time(), u, ask_fall);
+    if (!(since < p_.hysteresis)) ri.rapid = 0;
+    note_interval(ri, t, last_i, u);
     if (stability) return Switch::Stability;
-    if (cheaper_soft(i)) return Switch::Cost;
+    if (cheaper_soft(ri)) return Switch::Cost;
     return Switch::Stay;
   }
 
   // f(j) for the recent partners of i whose collision with it lies within the cluster window of t.
   template <class F>
   void cluster(int i, double t, F&& f) const {
+    const Rec& r = rec_[i];
     for (int k = 0; k < 2; ++k) {
-      const int j = recent_[i][k];
-      if (j >= 0 && t - recent_t_[i][k] < p_.cluster_window) f(j);
+      const int j = r.recent[k];
+      if (j >= 0 && t - r.recent_t[k] < p_.cluster_window) f(j);
     }
   }
 
   // i joined the soft set (its interval average restarts) or returned hard (partners forgotten).
   void forget_interval(int i) {
-    ema_[i] = kNever;
-    prev_[i] = kNever;
-    prevu_[i] = kNever;
-    seen_[i] = 0;
+    Rec& r = rec_[i];
+    r.ema = kNever;
+    r.prev = kNever;
+    r.prevu = kNever;
+    r.seen = 0;
   }
   void forget(int i) {
     forget_interval(i);
-    recent_[i] = {-1, -1};
+    rec_[i].recent[0] = rec_[i].recent[1] = -1;
   }
 
-  double interval(int i) const { return ema_[i]; }
+  double interval(int i) const { return rec_[i].ema; }
   // i's smoothed collision rate as the cost rule counts it (0 before its 4th interval).
-  double rate(int i) const { return seen_[i] >= kCostAfter ? 1.0 / ema_[i] : 0.0; }
+  double rate(int i) const { return rec_[i].seen >= kCostAfter ? 1.0 / rec_[i].ema : 0.0; }
   // The crossover rate of the cost rule, 1 / (cost_ratio x substep): a region whose grains
   // collide faster than this on average is cheaper soft.
   double crossover_rate() const { return 1.0 / p_.cost_interval; }
   // The partner of i's collision before its latest one (-1 if none).
-  int earlier_partner(int i) const { return recent_[i][1]; }
-  int recent(int i, int k) const { return recent_[i][k]; }
-  int rapid_count(int i) const { return rapid_[i]; }
+  int earlier_partner(int i) const { return rec_[i].recent[1]; }
+  int recent(int i, int k) const { return rec_[i].recent[k]; }
+  int rapid_count(int i) const { return rec_[i].rapid; }
+  // Brings i's history towards the cache (a collision of i is about to be judged).
+  void prefetch(int i) const { __builtin_prefetch(&rec_[static_cast<std::size_t>(i)], 1); }
 
  private:
   static constexpr double kNever = std::numeric_limits<double>::infinity();
@@ -174,46 +159,54 @@ class SwitchRule {
   // interval nor its impact speed exceeds the previous collision's; within the window otherwise,
   // it starts a new run (from its impact speed u0_). The run is unstable from its repeats-th
   // collision on, once the impact speed has fallen by `fall` from u0_ (when asked).
-  bool rapid(int i, double t, double last, double window, double u, bool ask_fall) {
+  // A particle's history, in one cache line: a collision reads and writes all of it for both
+  // particles (in eight arrays it was a dozen cache misses a collision, the rule's main cost in a
+  // gas: README "Hybrid dynamics", bench/README.md).
+  struct alignas(64) Rec {
+    double ema = kNever;
+    double prev = kNever;   // the latest interval (-> the shrinking test)
+    double prevu = kNever;  // and the impact speed of the latest collision
+    double u0 = 0.0;        // the impact speed of the first collision of the rapid run
+    double recent_t[2] = {-kNever, -kNever};
+    int recent[2] = {-1, -1};  // the two latest partners
+    int rapid = 0;
+    int seen = 0;  // intervals in ema (capped at kEmaSpan)
+  };
+  static_assert(sizeof(Rec) == 64);
+
+  bool rapid(Rec& r, double t, double last, double window, double u, bool ask_fall) {
     const double dt = t - last;
     if (dt < window) {
-      if (dt <= prev_[i] && u <= prevu_[i] && rapid_[i] > 0) {
-        ++rapid_[i];
+      if (dt <= r.prev && u <= r.prevu && r.rapid > 0) {
+        ++r.rapid;
       } else {
-        rapid_[i] = 1;
-        u0_[i] = u;
+        r.rapid = 1;
+        r.u0 = u;
       }
-      return rapid_[i] >= p_.repeats && (!ask_fall || u * p_.fall <= u0_[i]);
+      return r.rapid >= p_.repeats && (!ask_fall || u * p_.fall <= r.u0);
     }
-    rapid_[i] = 0;
+    r.rapid = 0;
     return false;
   }
-  void note_interval(int i, double t, double last, double u) {
+  void note_interval(Rec& r, double t, double last, double u) {
     const double dt = t - last;
-    prev_[i] = dt;
-    prevu_[i] = u;
+    r.prev = dt;
+    r.prevu = u;
     if (!(dt < kNever)) return;  // the first collision: no interval yet
-    const int n = seen_[i] < kEmaSpan ? ++seen_[i] : kEmaSpan;
-    ema_[i] = n == 1 ? dt : ema_[i] + (dt - ema_[i]) / n;
+    const int n = r.seen < kEmaSpan ? ++r.seen : kEmaSpan;
+    r.ema = n == 1 ? dt : r.ema + (dt - r.ema) / n;
   }
-  bool cheaper_soft(int i) const { return seen_[i] >= kCostAfter && ema_[i] < p_.cost_interval; }
+  bool cheaper_soft(const Rec& r) const { return r.seen >= kCostAfter && r.ema < p_.cost_interval; }
   static constexpr int kEmaSpan = 8, kCostAfter = 4;
-  void note_partner(int i, int j, double t) {
-    recent_[i][1] = recent_[i][0];
-    recent_t_[i][1] = recent_t_[i][0];
-    recent_[i][0] = j;
-    recent_t_[i][0] = t;
+  void note_partner(Rec& r, int j, double t) {
+    r.recent[1] = r.recent[0];
+    r.recent_t[1] = r.recent_t[0];
+    r.recent[0] = j;
+    r.recent_t[0] = t;
   }
 
   Params p_;
-  std::vector<int> rapid_;
-  std::vector<double> ema_;
-  std::vector<double> prev_;  // each particle's latest interval (-> the shrinking test)
-  std::vector<double> prevu_;  // and the impact speed of its latest collision
-  std::vector<double> u0_;     // the impact speed of the first collision of its rapid run
-  std::vector<int> seen_;     // intervals in ema_ (capped at kEmaSpan)
-  std::vector<std::array<int, 2>> recent_;
-  std::vector<std::array<double, 2>> recent_t_;
+  std::vector<Rec> rec_;
 };
 
 }  // namespace matep::hybrid

@@ -1279,24 +1279,38 @@ class HybridEngine final : public edm::EdmCore<D, CalendarQueue, HybridEngine<D>
     }
   };
   // The row of awake soft i at a list build (rebuild_entries): its pairs with the soft particles
-  // after it, the sleepers and the fixed grains within the list skin, and its walls, each with the
-  // spring it had (mem).
+  // of the cells after its own and the higher ids of its own, the sleepers and the fixed grains
+  // within the list skin, and its walls, each with the spring it had (mem).
   void build_row(int i, double t, const soft::SpringMemory<D>& mem, BuildSink& out) {
     x0_[i] = hot_[i].x;
     set_free_reach(i);
     const Vec<D> xi = hot_[i].x;
     const double Ri = hot_[i].R;
     out.pairs.begin_row(ui(i));
-    soft_grid_neighbours(i, [&](int j, const Vec<D>& shift) {
-      const std::uint8_t m = mode_[j];
-      if (!((m == kSoft && j > i) || m == kAsleep || m == kFixed)) return;
+    const auto entry = [&](int j, const Vec<D>& shift) {
       const double cut = Ri + hot_[j].R + lskin_;
       if ((xi - hot_[j].x - shift).squaredNorm() >= cut * cut) return;
       PairEntry e{ui(i), ui(j), pair_contact_in(i, j, out.ctab), image_of(shift), 0, Vec<D>::Zero()};
       if (mem.recall_pair(ui(i), ui(j), e.xi, &e.mr)) e.touch = 1;
       out.pairs.add(e);
-      if (m == kAsleep) out.watch.push_back(j);
+      if (mode_[j] == kAsleep) out.watch.push_back(j);
+    };
+    // Soft pairs once each: in the row of the grain in the lower cell, or of the lower id in one cell
+    // (a half stencil, as TDM's build; on hashed cells, every cell and the lower id).
+    const std::array<int, D> ci = sgrid_.coords(xi);
+    const int li = sgrid_.linear(ci);
+    const bool half = sg_half_;
+    sgrid_.around(ci, [&](int l, const Vec<D>& shift) {
+      if (half && l < li) return;
+      const bool own = !half || l == li;
+      for (int p = sg_start_[l], e = sg_start_[l + 1]; p < e; ++p)
+        if (const int j = sg_items_[p]; !own || j > i) entry(j, shift);
     });
+    // The sleepers and fixed grains in every cell around.
+    if (!ss_items_.empty())
+      sgrid_.around(ci, [&](int l, const Vec<D>& shift) {
+        for (int p = ss_start_[l], e = ss_start_[l + 1]; p < e; ++p) entry(ss_items_[p], shift);
+      });
     out.pairs.end_row();
     soft::walls_in_reach<D>(shapes_, xi, Ri, lskin_, t, out.feats, [&](std::uint32_t w, std::uint32_t f) {
       WallEntry e = new_wall_entry_in(i, static_cast<int>(w), f, out.ctab, out.wmr);
@@ -1306,8 +1320,8 @@ class HybridEngine final : public edm::EdmCore<D, CalendarQueue, HybridEngine<D>
     });
   }
 
-  // The neighbour search of the list builds: the awake soft particles and the sleepers near them,
-  // counting-sorted into cells of width 2 rmax + lskin over the awake particles' bounding box
+  // The neighbour search of the list builds: the awake soft particles, and apart from them the
+  // sleepers and fixed grains near them, counting-sorted into cells of width 2 rmax + lskin over the awake particles' bounding box
   // widened by one cell (the whole axis if periodic). The EDM cells are coarser where the domain
   // is mostly empty (a tall pour: their count is capped at 2 N).
   void soft_grid_build() {
@@ -1329,38 +1343,45 @@ class HybridEngine final : public edm::EdmCore<D, CalendarQueue, HybridEngine<D>
     // At most about four cells per participant (periodic axes keep three).
     const double cap = 4.0 * static_cast<double>(soft_.size() + asleep_list_.size()) + 64.0;
     sgrid_.build(lo, hi, sys_.periodic, w, cap, 1e6, /*hash=*/true);
+    // The half stencil needs each neighbour cell once: a linear layout, three cells or more on a
+    // periodic axis (fewer would show a cell as two images).
+    sg_half_ = !sgrid_.hashed();
+    for (int k = 0; k < D; ++k) sg_half_ = sg_half_ && (!sys_.periodic[k] || sgrid_.count(k) >= 3);
     const std::size_t cells = static_cast<std::size_t>(sgrid_.cells());
-    sg_start_.assign(cells + 1, 0);
-    sg_part_.clear();
-    sg_cell_.clear();
-    auto place = [&](int i) {
-      std::array<int, D> c{};
-      for (int k = 0; k < D; ++k) {
-        const double u = (hot_[i].x[k] - sgrid_.lower()[k]) / sgrid_.width(k);
-        if (!sys_.periodic[k] && !(u >= 0.0 && u < sgrid_.count(k))) return;  // out of reach
-        c[k] = std::clamp(static_cast<int>(u), 0, sgrid_.count(k) - 1);
-      }
-      const int l = sgrid_.linear(c);
-      sg_part_.push_back(i);
-      sg_cell_.push_back(l);
-      ++sg_start_[static_cast<std::size_t>(l) + 1];
+    // Two counting sorts into the same cells: the awake soft grains, and the sleepers and fixed
+    // grains within reach.
+    auto sort_into = [&](auto&& each, std::vector<int>& start, std::vector<int>& items) {
+      start.assign(cells + 1, 0);
+      sg_part_.clear();
+      sg_cell_.clear();
+      each([&](int i) {
+        std::array<int, D> c{};
+        for (int k = 0; k < D; ++k) {
+          const double u = (hot_[i].x[k] - sgrid_.lower()[k]) / sgrid_.width(k);
+          if (!sys_.periodic[k] && !(u >= 0.0 && u < sgrid_.count(k))) return;  // out of reach
+          c[k] = std::clamp(static_cast<int>(u), 0, sgrid_.count(k) - 1);
+        }
+        const int l = sgrid_.linear(c);
+        sg_part_.push_back(i);
+        sg_cell_.push_back(l);
+        ++start[static_cast<std::size_t>(l) + 1];
+      });
+      for (std::size_t c = 0; c < cells; ++c) start[c + 1] += start[c];
+      items.resize(sg_part_.size());
+      sg_fill_.assign(start.begin(), start.end() - 1);
+      for (std::size_t p = 0; p < sg_part_.size(); ++p) items[sg_fill_[sg_cell_[p]]++] = sg_part_[p];
     };
-    for (const int i : soft_) place(i);
-    for (const int i : asleep_list_) place(i);
-    for (const int i : fixed_list_) place(i);  // those within reach of the soft set
-    for (std::size_t c = 0; c < cells; ++c) sg_start_[c + 1] += sg_start_[c];
-    sg_items_.resize(sg_part_.size());
-    sg_fill_.assign(sg_start_.begin(), sg_start_.end() - 1);
-    for (std::size_t p = 0; p < sg_part_.size(); ++p) sg_items_[sg_fill_[sg_cell_[p]]++] = sg_part_[p];
-  }
-  // f(j, shift) for every participant j != i in the cells around awake i (shift: the image of j
-  // next to i, as for_neighbours).
-  template <class F>
-  void soft_grid_neighbours(int i, F&& f) const {
-    sgrid_.around(sgrid_.coords(hot_[i].x), [&](int l, const Vec<D>& shift) {
-      for (int p = sg_start_[l], e = sg_start_[l + 1]; p < e; ++p)
-        if (sg_items_[p] != i) f(sg_items_[p], shift);
-    });
+    sort_into([&](auto&& place) { for (const int i : soft_) place(i); }, sg_start_, sg_items_);
+    if (asleep_list_.empty() && fixed_list_.empty()) {
+      ss_items_.clear();
+    } else {
+      sort_into(
+          [&](auto&& place) {
+            for (const int i : asleep_list_) place(i);
+            for (const int i : fixed_list_) place(i);
+          },
+          ss_start_, ss_items_);
+    }
   }
 
   void watch(int j) {
@@ -2799,6 +2820,8 @@ class HybridEngine final : public edm::EdmCore<D, CalendarQueue, HybridEngine<D>
   std::vector<std::pair<int, int>> leaving_;  // (soft particle, outlet) entered at this substep
   std::vector<int> unsupported_;     // sleepers that touched a grain that left
   std::vector<int> sg_start_, sg_items_, sg_cell_, sg_part_, sg_fill_;
+  std::vector<int> ss_start_, ss_items_;  // the sleepers and fixed grains in the same cells
+  bool sg_half_ = false;                  // the rows' walk takes the half stencil (soft_grid_build)
   std::vector<std::uint64_t> moved_, moved_w_;
   std::vector<double> fz_scale_;
   // The rest rule's gap trend: each soft grain's position at its last check (or join), and its

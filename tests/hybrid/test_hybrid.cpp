@@ -759,11 +759,15 @@ TEST(HybridRest, SleepingBedMatchesTdmAndStopsTheSubsteps) {
   // compacting bed still closes are closed.
   const double Zs = coordination(b.rest), Za = coordination(b.awake), Zt = coordination(b.tdm);
   std::printf("coordination: rest rule %.4f, awake %.4f, TDM %.4f\n", Zs, Za, Zt);
-  // A bed of 500 grains scatters by about 1 % in Z from one realization to the next (measured here:
-  // rest rule 4.172, awake 4.188, TDM 4.168; with the earlier creep test 4.124): the 2000-grain pour
-  // tells the rules apart (README "Hybrid dynamics", rest rule); this checks the gross failure.
-  EXPECT_NEAR(Zs / Zt, 1.0, 0.025);
-  EXPECT_NEAR(Za / Zt, 1.0, 0.025);
+  // A bed of 500 grains scatters in Z from one realization to the next: seeds 11-16 of this bed,
+  // each run with two builds whose force sums differ at round-off (2026-12-06), gave TDM 4.14-4.32
+  // (sd 1.6 %), the hybrid awake 4.16-4.32 (sd 1.2 %), with the rest rule 4.13-4.22 (sd 0.7 %;
+  // 4.124 with the earlier creep test). The ratio of two realizations thus scatters by about 2 %
+  // (awake / TDM 0.97-1.04, rest rule / TDM 0.97-1.01 over those twelve runs), and these gates
+  // are 3 of those deviations: the 2000-grain pour tells the rules apart (README "Hybrid
+  // dynamics", rest rule); this checks the gross failure.
+  EXPECT_NEAR(Zs / Zt, 1.0, 0.06);
+  EXPECT_NEAR(Za / Zt, 1.0, 0.06);
   // Every grain asleep at the end, at rest; no substep after the last one fell asleep.
   expect_all_asleep<3>(b, s.size());
   for (const auto& v : b.rest.v) EXPECT_EQ(v.squaredNorm(), 0.0);

@@ -1321,9 +1321,9 @@ class HybridEngine final : public edm::EdmCore<D, CalendarQueue, HybridEngine<D>
   }
 
   // The neighbour search of the list builds: the awake soft particles, and apart from them the
-  // sleepers and fixed grains near them, counting-sorted into cells of width 2 rmax + lskin over the awake particles' bounding box
-  // widened by one cell (the whole axis if periodic). The EDM cells are coarser where the domain
-  // is mostly empty (a tall pour: their count is capped at 2 N).
+  // sleepers and fixed grains near them, counting-sorted into cells of width 2 rmax + lskin over
+  // the awake particles' bounding box widened by one cell (the whole axis if periodic). The EDM
+  // cells are coarser where the domain is mostly empty (a tall pour: their count is capped at 2 N).
   void soft_grid_build() {
     Vec<D> lo = Vec<D>::Constant(kNever), hi = Vec<D>::Constant(-kNever);
     for (const int i : soft_) {

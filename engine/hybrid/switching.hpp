@@ -27,7 +27,6 @@
 // cluster window make them turn soft together (cluster()).
 #pragma once
 
-#include <array>
 #include <cstdint>
 #include <limits>
 #include <vector>
@@ -155,13 +154,8 @@ class SwitchRule {
  private:
   static constexpr double kNever = std::numeric_limits<double>::infinity();
 
-  // A rapid collision continues the run if its interval is within the window and neither its
-  // interval nor its impact speed exceeds the previous collision's; within the window otherwise,
-  // it starts a new run (from its impact speed u0_). The run is unstable from its repeats-th
-  // collision on, once the impact speed has fallen by `fall` from u0_ (when asked).
   // A particle's history, in one cache line: a collision reads and writes all of it for both
-  // particles (in eight arrays it was a dozen cache misses a collision, the rule's main cost in a
-  // gas: README "Hybrid dynamics", bench/README.md).
+  // particles (one line a grain instead of eight arrays; fetched ahead by prefetch()).
   struct alignas(64) Rec {
     double ema = kNever;
     double prev = kNever;   // the latest interval (-> the shrinking test)
@@ -174,6 +168,10 @@ class SwitchRule {
   };
   static_assert(sizeof(Rec) == 64);
 
+  // A rapid collision continues the run if its interval is within the window and neither its
+  // interval nor its impact speed exceeds the previous collision's; within the window otherwise,
+  // it starts a new run (from its impact speed u0). The run is unstable from its repeats-th
+  // collision on, once the impact speed has fallen by `fall` from u0 (when asked).
   bool rapid(Rec& r, double t, double last, double window, double u, bool ask_fall) {
     const double dt = t - last;
     if (dt < window) {

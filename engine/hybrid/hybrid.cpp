@@ -11,6 +11,7 @@
 #include <array>
 #include <atomic>
 #include <cmath>
+#include <initializer_list>
 #include <stdexcept>
 #include <tuple>
 
@@ -249,9 +250,9 @@ class HybridEngine final : public edm::EdmCore<D, CalendarQueue, HybridEngine<D>
   // Soft, pending and sleeping neighbours take no part in a hard particle's pair predictions (a
   // hard particle joins the soft set before it touches one); a soft or sleeping one makes it an
   // interface particle.
-  // (While every grain is hard, fixed or gone, which is most of a gas's run, no mode is read.)
+  // (While nothing is soft, pending or asleep, which is most of a gas's run, no mode is read.)
   bool ext_skip_neighbour(int i, int j) {
-    if (nonhard_ == 0 || mode_[j] == kHard) return false;
+    if (all_hard() || mode_[j] == kHard) return false;
     if (mode_[j] != kPending) mark_interface(i);
     return true;
   }
@@ -471,7 +472,6 @@ class HybridEngine final : public edm::EdmCore<D, CalendarQueue, HybridEngine<D>
     near_.assign(N_, 0);
     switch_.reset(N_, switch_params_);
     mode_.assign(N_, kHard);
-    nonhard_ = 0;
     for (const int i : fixed_list_) mode_[i] = kFixed;  // (the interface list is empty yet)
     for (int i = 0; i < N_; ++i)
       if (this->is_removed(i)) mode_[i] = kGone;  // a slot an inlet fills later
@@ -496,16 +496,11 @@ class HybridEngine final : public edm::EdmCore<D, CalendarQueue, HybridEngine<D>
 
   double inv_mass(int i) const { return minv_[i]; }
 
-  // The modes whose grains a hard grain's predictions skip (ext_skip_neighbour): counted in nonhard_.
-  static bool counts_as_nonhard(std::uint8_t m) { return m == kSoft || m == kPending || m == kAsleep; }
-  void count_nonhard() {
-    nonhard_ = 0;
-    for (const std::uint8_t m : mode_) nonhard_ += counts_as_nonhard(m);
-  }
+  // No grain is soft, pending or asleep (fixed and gone grains aside): every grain moves by events.
+  bool all_hard() const { return soft_.empty() && pending_.empty() && asleep_ == 0; }
   // Every change of a grain's mode goes through here: an interface grain that is no longer hard
   // leaves the interface list at the next capture scan.
   void set_mode(int i, std::uint8_t m) {
-    nonhard_ += static_cast<int>(counts_as_nonhard(m)) - static_cast<int>(counts_as_nonhard(mode_[i]));
     mode_[i] = m;
     if (iface_flag_[i]) due_now();
   }
@@ -1350,38 +1345,36 @@ class HybridEngine final : public edm::EdmCore<D, CalendarQueue, HybridEngine<D>
     const std::size_t cells = static_cast<std::size_t>(sgrid_.cells());
     // Two counting sorts into the same cells: the awake soft grains, and the sleepers and fixed
     // grains within reach.
-    auto sort_into = [&](auto&& each, std::vector<int>& start, std::vector<int>& items) {
+    auto sort_into = [&](std::initializer_list<const std::vector<int>*> lists, std::vector<int>& start,
+                         std::vector<int>& items) {
       start.assign(cells + 1, 0);
       sg_part_.clear();
       sg_cell_.clear();
-      each([&](int i) {
-        std::array<int, D> c{};
-        for (int k = 0; k < D; ++k) {
-          const double u = (hot_[i].x[k] - sgrid_.lower()[k]) / sgrid_.width(k);
-          if (!sys_.periodic[k] && !(u >= 0.0 && u < sgrid_.count(k))) return;  // out of reach
-          c[k] = std::clamp(static_cast<int>(u), 0, sgrid_.count(k) - 1);
+      for (const std::vector<int>* list : lists)
+        for (const int i : *list) {
+          std::array<int, D> c{};
+          bool in = true;
+          for (int k = 0; k < D && in; ++k) {
+            const double u = (hot_[i].x[k] - sgrid_.lower()[k]) / sgrid_.width(k);
+            in = sys_.periodic[k] || (u >= 0.0 && u < sgrid_.count(k));  // else out of reach
+            c[k] = std::clamp(static_cast<int>(u), 0, sgrid_.count(k) - 1);
+          }
+          if (!in) continue;
+          const int l = sgrid_.linear(c);
+          sg_part_.push_back(i);
+          sg_cell_.push_back(l);
+          ++start[static_cast<std::size_t>(l) + 1];
         }
-        const int l = sgrid_.linear(c);
-        sg_part_.push_back(i);
-        sg_cell_.push_back(l);
-        ++start[static_cast<std::size_t>(l) + 1];
-      });
       for (std::size_t c = 0; c < cells; ++c) start[c + 1] += start[c];
       items.resize(sg_part_.size());
       sg_fill_.assign(start.begin(), start.end() - 1);
       for (std::size_t p = 0; p < sg_part_.size(); ++p) items[sg_fill_[sg_cell_[p]]++] = sg_part_[p];
     };
-    sort_into([&](auto&& place) { for (const int i : soft_) place(i); }, sg_start_, sg_items_);
-    if (asleep_list_.empty() && fixed_list_.empty()) {
+    sort_into({&soft_}, sg_start_, sg_items_);
+    if (asleep_list_.empty() && fixed_list_.empty())
       ss_items_.clear();
-    } else {
-      sort_into(
-          [&](auto&& place) {
-            for (const int i : asleep_list_) place(i);
-            for (const int i : fixed_list_) place(i);
-          },
-          ss_start_, ss_items_);
-    }
+    else
+      sort_into({&asleep_list_, &fixed_list_}, ss_start_, ss_items_);
   }
 
   void watch(int j) {
@@ -1736,7 +1729,7 @@ class HybridEngine final : public edm::EdmCore<D, CalendarQueue, HybridEngine<D>
     // With nothing soft, asleep or pending no grain can be captured: the interface list empties
     // now instead of at each member's next check (in the stability map's gas at e = 0.1,
     // phi = 0.05, a fifth of the substeps had no soft grain).
-    if (soft_.empty() && asleep_ == 0 && pending_.empty() && !iface_.empty()) {
+    if (all_hard() && !iface_.empty()) {
       for (const int i : iface_) iface_flag_[i] = 0;
       iface_.clear();
     }
@@ -2681,7 +2674,6 @@ class HybridEngine final : public edm::EdmCore<D, CalendarQueue, HybridEngine<D>
     for (auto* v : {&pending_reason_, &touching_, &near_, &mode_, &iface_flag_, &cand_, &joined_by_, &fz_cand_,
                     &fz_lost_, &watch_flag_})
       a(*v);
-    if constexpr (A::loading) count_nonhard();
     for (auto* v : {&begun_n_, &held_, &gadj_}) a(*v);
     a(moved_);
     a(moved_w_);
@@ -2765,7 +2757,6 @@ class HybridEngine final : public edm::EdmCore<D, CalendarQueue, HybridEngine<D>
   std::vector<std::uint8_t> iface_flag_;  // a hard particle on the interface list
   std::vector<double> iface_next_;        // its next capture check (substep time)
   double iface_due_ = 0.0;                // the earliest iface_next_ of the list, or earlier
-  int nonhard_ = 0;                       // grains soft, pending or asleep (set_mode)
   double vsoft_max_ = 0.0;                // fastest awake soft particle at the last substep
   std::vector<int> region_;               // region_cheaper_soft's region
   std::vector<std::uint32_t> region_seen_;  // ... its members: region_stamp_ of the search

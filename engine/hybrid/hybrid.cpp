@@ -987,9 +987,11 @@ class HybridEngine final : public edm::EdmCore<D, CalendarQueue, HybridEngine<D>
       if (!cand_[e.i] && !cand_[e.j]) return;
       Vec<D> dx = hot_[e.i].x - hot_[e.j].x;
       min_image(dx);
-      const double cut =
-          hot_[e.i].R + hot_[e.j].R + capture_gap(std::sqrt(std::max(hot_[e.i].v.squaredNorm(), hot_[e.j].v.squaredNorm())));
-      if (dx.squaredNorm() >= cut * cut) return;
+      const double Rs = hot_[e.i].R + hot_[e.j].R, d2 = dx.squaredNorm();
+      // Beyond the largest capture distance (capture_gap's bound) no pair's own can reach.
+      if (d2 >= (Rs + cskin_) * (Rs + cskin_)) return;
+      const double cut = Rs + capture_gap(std::sqrt(std::max(hot_[e.i].v.squaredNorm(), hot_[e.j].v.squaredNorm())));
+      if (d2 >= cut * cut) return;
       // A fixed grain next to an early candidate holds it (under gravity a grain that leaves it
       // comes back).
       if ((cand_[e.i] == 2 || cand_[e.j] == 2) && (mode_[e.i] == kFixed || mode_[e.j] == kFixed)) {
@@ -1066,16 +1068,24 @@ class HybridEngine final : public edm::EdmCore<D, CalendarQueue, HybridEngine<D>
     // horizon the middle grain went hard 2.6 hysteresis spans before a rapid hard sequence with
     // both neighbours, the end 99 % off converged TDM).
     const double horizon = kLookaheadSince * lookahead_ * plan_.contact_time;
-    for (const int a : early_)
-      for (const int b : group_) {
-        if (b == a || (cand_[b] == 2 && b < a)) continue;  // each pair once
-        Vec<D> r = hot_[a].x - hot_[b].x;
-        min_image(r);
-        if (meet_within(r, hot_[a].v - hot_[b].v, hot_[a].R + hot_[b].R, horizon)) {
-          held_.push_back(a);
-          held_.push_back(b);
-        }
+    const auto test = [&](int a, int b) {
+      if (b == a || (cand_[b] == 2 && b < a)) return;  // each pair once
+      Vec<D> r = hot_[a].x - hot_[b].x;
+      min_image(r);
+      if (meet_within(r, hot_[a].v - hot_[b].v, hot_[a].R + hot_[b].R, horizon)) {
+        held_.push_back(a);
+        held_.push_back(b);
       }
+    };
+    if (!group_cells(horizon)) {
+      for (const int a : early_)
+        for (const int b : group_) test(a, b);
+    } else {
+      for (const int a : early_)
+        hgrid_.around(hgrid_.coords(group_pos(a)), [&](int l, const Vec<D>&) {
+          for (int p = hg_start_[l], e = hg_start_[l + 1]; p < e; ++p) test(a, hg_items_[p]);
+        });
+    }
     // ... nor a hard grain of the candidate's neighbour cells: the hysteresis would capture it and
     // resolve that meeting soft (four grains in a line, the fourth hard and closing in: 27-53 % off
     // converged TDM when the three soft ones went before it arrived).
@@ -1090,6 +1100,62 @@ class HybridEngine final : public edm::EdmCore<D, CalendarQueue, HybridEngine<D>
       if (meets) held_.push_back(a);
     }
   }
+  // The candidates in cells at least as wide as two of them can be apart and still meet within
+  // the window: the sum of their radii plus twice the fastest one's speed times the window
+  // (|r + u s| = R_a + R_b for some s < horizon needs |r| < R_a + R_b + |u| horizon). The pairs
+  // of neighbouring cells are then every pair that can meet; hold_unfinished tests only those,
+  // with the same test in the same arithmetic, so the hold is the one the test of every pair
+  // gives (the held list is used as a set). In the stability map's dense gas at e = 0.1
+  // (phi = 0.55, 500 spheres, about 400 soft) the test of every pair took 4 % of the run's
+  // samples, half that with the cells. False where cells would not help (a small group, a single
+  // block of cells, fewer than three cells across a periodic axis): every pair is then tested.
+  bool group_cells(double horizon) {
+    if (group_.size() < kGroupCells) return false;
+    double vmax = 0.0, rmax = 0.0;
+    Vec<D> lo = Vec<D>::Constant(kNever), hi = Vec<D>::Constant(-kNever);
+    for (const int b : group_) {
+      vmax = std::max(vmax, hot_[b].v.norm());
+      rmax = std::max(rmax, hot_[b].R);
+      const Vec<D> x = group_pos(b);
+      lo = lo.cwiseMin(x);
+      hi = hi.cwiseMax(x);
+    }
+    const double cut = (2.0 * rmax + 2.0 * vmax * horizon) * (1.0 + 1e-9);
+    if (!(cut < kNever)) return false;
+    for (int k = 0; k < D; ++k) {
+      if (sys_.periodic[k]) {
+        lo[k] = lo_[k];
+        hi[k] = hi_[k];
+      } else {
+        hi[k] = std::max(hi[k], lo[k] + cut);  // (one cell at least)
+      }
+    }
+    if (CellGrid<D>::natural_cells(lo, hi, cut) < static_cast<double>(CellGrid<D>::kStencil) + 1.0) return false;
+    if (!hgrid_.build(lo, hi, sys_.periodic, cut, 2.0 * static_cast<double>(group_.size()) + 27.0)) return false;
+    const std::size_t cells = static_cast<std::size_t>(hgrid_.cells());
+    hg_start_.assign(cells + 1, 0);
+    hg_cell_.resize(group_.size());
+    for (std::size_t k = 0; k < group_.size(); ++k) {
+      hg_cell_[k] = hgrid_.linear(hgrid_.coords(group_pos(group_[k])));
+      ++hg_start_[static_cast<std::size_t>(hg_cell_[k]) + 1];
+    }
+    for (std::size_t c = 0; c < cells; ++c) hg_start_[c + 1] += hg_start_[c];
+    hg_fill_.assign(hg_start_.begin(), hg_start_.end() - 1);
+    hg_items_.resize(group_.size());
+    for (std::size_t k = 0; k < group_.size(); ++k) hg_items_[hg_fill_[hg_cell_[k]]++] = group_[k];
+    return true;
+  }
+  // A candidate's position for those cells: wrapped into the domain along periodic axes.
+  Vec<D> group_pos(int b) const {
+    Vec<D> x = hot_[b].x;
+    for (int k = 0; k < D; ++k)
+      if (sys_.periodic[k]) x[k] = wrap_periodic(x[k], lo_[k], hi_[k]);
+    return x;
+  }
+  static constexpr std::size_t kGroupCells = 64;
+  CellGrid<D> hgrid_;
+  std::vector<int> hg_start_, hg_cell_, hg_fill_, hg_items_;
+
   // When two grains at separation r (centres) with constant relative velocity u first touch (their
   // centres sig apart): the first root of |r + u s| = sig, in a form without cancellation; kNever
   // when they move apart or pass each other, 0 when they approach already touching.

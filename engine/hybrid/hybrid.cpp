@@ -1133,17 +1133,8 @@ class HybridEngine final : public edm::EdmCore<D, CalendarQueue, HybridEngine<D>
     }
     if (CellGrid<D>::natural_cells(lo, hi, cut) < static_cast<double>(CellGrid<D>::kStencil) + 1.0) return false;
     if (!hgrid_.build(lo, hi, sys_.periodic, cut, 2.0 * static_cast<double>(group_.size()) + 27.0)) return false;
-    const std::size_t cells = static_cast<std::size_t>(hgrid_.cells());
-    hg_start_.assign(cells + 1, 0);
-    hg_cell_.resize(group_.size());
-    for (std::size_t k = 0; k < group_.size(); ++k) {
-      hg_cell_[k] = hgrid_.linear(hgrid_.coords(group_pos(group_[k])));
-      ++hg_start_[static_cast<std::size_t>(hg_cell_[k]) + 1];
-    }
-    for (std::size_t c = 0; c < cells; ++c) hg_start_[c + 1] += hg_start_[c];
-    hg_fill_.assign(hg_start_.begin(), hg_start_.end() - 1);
-    hg_items_.resize(group_.size());
-    for (std::size_t k = 0; k < group_.size(); ++k) hg_items_[hg_fill_[hg_cell_[k]]++] = group_[k];
+    cell_sort(static_cast<std::size_t>(hgrid_.cells()), {&group_},
+              [&](int b) { return hgrid_.linear(hgrid_.coords(group_pos(b))); }, hg_start_, hg_items_);
     return true;
   }
   // A candidate's position for those cells: wrapped into the domain along periodic axes.
@@ -1155,7 +1146,7 @@ class HybridEngine final : public edm::EdmCore<D, CalendarQueue, HybridEngine<D>
   }
   static constexpr std::size_t kGroupCells = 64;
   CellGrid<D> hgrid_;
-  std::vector<int> hg_start_, hg_cell_, hg_fill_, hg_items_;
+  std::vector<int> hg_start_, hg_items_;
 
   // When two grains at separation r (centres) with constant relative velocity u first touch (their
   // centres sig apart): the first root of |r + u s| = sig, in a form without cancellation; kNever
@@ -1412,36 +1403,41 @@ class HybridEngine final : public edm::EdmCore<D, CalendarQueue, HybridEngine<D>
     const std::size_t cells = static_cast<std::size_t>(sgrid_.cells());
     // Two counting sorts into the same cells: the awake soft grains, and the sleepers and fixed
     // grains within reach.
-    auto sort_into = [&](std::initializer_list<const std::vector<int>*> lists, std::vector<int>& start,
-                         std::vector<int>& items) {
-      start.assign(cells + 1, 0);
-      sg_part_.clear();
-      sg_cell_.clear();
-      for (const std::vector<int>* list : lists)
-        for (const int i : *list) {
-          std::array<int, D> c{};
-          bool in = true;
-          for (int k = 0; k < D && in; ++k) {
-            const double u = (hot_[i].x[k] - sgrid_.lower()[k]) / sgrid_.width(k);
-            in = sys_.periodic[k] || (u >= 0.0 && u < sgrid_.count(k));  // else out of reach
-            c[k] = std::clamp(static_cast<int>(u), 0, sgrid_.count(k) - 1);
-          }
-          if (!in) continue;
-          const int l = sgrid_.linear(c);
-          sg_part_.push_back(i);
-          sg_cell_.push_back(l);
-          ++start[static_cast<std::size_t>(l) + 1];
-        }
-      for (std::size_t c = 0; c < cells; ++c) start[c + 1] += start[c];
-      items.resize(sg_part_.size());
-      sg_fill_.assign(start.begin(), start.end() - 1);
-      for (std::size_t p = 0; p < sg_part_.size(); ++p) items[sg_fill_[sg_cell_[p]]++] = sg_part_[p];
+    const auto cell_of = [&](int i) {
+      std::array<int, D> c{};
+      for (int k = 0; k < D; ++k) {
+        const double u = (hot_[i].x[k] - sgrid_.lower()[k]) / sgrid_.width(k);
+        if (!sys_.periodic[k] && !(u >= 0.0 && u < sgrid_.count(k))) return -1;  // out of reach
+        c[k] = std::clamp(static_cast<int>(u), 0, sgrid_.count(k) - 1);
+      }
+      return sgrid_.linear(c);
     };
-    sort_into({&soft_}, sg_start_, sg_items_);
+    cell_sort(cells, {&soft_}, cell_of, sg_start_, sg_items_);
     if (asleep_list_.empty() && fixed_list_.empty())
       ss_items_.clear();
     else
-      sort_into({&asleep_list_, &fixed_list_}, ss_start_, ss_items_);
+      cell_sort(cells, {&asleep_list_, &fixed_list_}, cell_of, ss_start_, ss_items_);
+  }
+  // A stable counting sort of the grains of `lists` (in order) into `cells` cells: grain i goes
+  // to cell cell_of(i) (negative: left out), cell l's grains are items[start[l] .. start[l + 1]).
+  template <class CellOf>
+  void cell_sort(std::size_t cells, std::initializer_list<const std::vector<int>*> lists, CellOf&& cell_of,
+                 std::vector<int>& start, std::vector<int>& items) {
+    start.assign(cells + 1, 0);
+    sg_part_.clear();
+    sg_cell_.clear();
+    for (const std::vector<int>* list : lists)
+      for (const int i : *list) {
+        const int l = cell_of(i);
+        if (l < 0) continue;
+        sg_part_.push_back(i);
+        sg_cell_.push_back(l);
+        ++start[static_cast<std::size_t>(l) + 1];
+      }
+    for (std::size_t c = 0; c < cells; ++c) start[c + 1] += start[c];
+    items.resize(sg_part_.size());
+    sg_fill_.assign(start.begin(), start.end() - 1);
+    for (std::size_t p = 0; p < sg_part_.size(); ++p) items[sg_fill_[sg_cell_[p]]++] = sg_part_[p];
   }
 
   void watch(int j) {

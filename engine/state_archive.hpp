@@ -57,11 +57,12 @@ concept Plain = std::is_trivially_destructible_v<T> && !std::is_pointer_v<T> && 
 // checkpoint 3.3 instead of 3.8 MB). A filled array longer than kMaxFill is a corrupt state.
 inline constexpr std::uint64_t kFill = std::uint64_t{1} << 63;
 inline constexpr std::uint64_t kMaxFill = std::uint64_t{1} << 40;
+// Every element equals the next one exactly when the bytes equal those one element further on:
+// one comparison of the array with itself shifted (a call per element cost a 500-grain hybrid run
+// 0.1 ms at its end checkpoint, three passes over some sixty arrays).
 inline bool uniform(const void* p, std::size_t n, std::size_t size) {
   const auto* b = static_cast<const std::uint8_t*>(p);
-  for (std::size_t k = 1; k < n; ++k)
-    if (std::memcmp(b, b + k * size, size) != 0) return false;
-  return true;
+  return n < 2 || std::memcmp(b, b + size, (n - 1) * size) == 0;
 }
 
 class StateWriter {

@@ -520,6 +520,23 @@ TEST(CheckpointEngines, ArraysOfEqualElementsAreSavedOnce) {
   EXPECT_EQ(c, vecs);
   EXPECT_EQ(d, single);
 
+  // The test of equal elements, at each end of the array and inside an element.
+  std::vector<matep::Vec<3>> last_off = vecs;
+  last_off.back()[2] = 3.5;
+  std::vector<matep::Vec<3>> first_off = vecs;
+  first_off.front()[0] = 0.5;
+  const auto equal = [](const auto& v) { return matep::uniform(v.data(), v.size(), sizeof(v[0])); };
+  EXPECT_TRUE(equal(vecs));
+  EXPECT_TRUE(equal(same));
+  EXPECT_TRUE(equal(single));
+  EXPECT_TRUE(equal(std::vector<int>{}));
+  EXPECT_FALSE(equal(last_off));
+  EXPECT_FALSE(equal(first_off));
+  EXPECT_FALSE(equal(one_off));
+  EXPECT_FALSE(equal(std::vector<std::uint8_t>{0, 0, 0, 1}));
+  // Elements whose bytes repeat with a shorter period than the element are still compared whole.
+  EXPECT_FALSE(equal(std::vector<std::uint16_t>{0x0101, 0x0101, 0x0102}));
+
   std::vector<std::uint8_t> bytes = w.bytes;
   const std::uint64_t huge = (std::uint64_t{1} << 63) | (std::uint64_t{1} << 50);
   std::memcpy(bytes.data() + 8, &huge, sizeof huge);  // the first array's length

@@ -102,6 +102,9 @@ class EdmCore {
   bool ext_divert_pair(int, int, double) { return false; }
   // A pair event of i and j is being handled: what ext_divert_pair will read may be fetched now.
   void ext_prefetch_pair(int, int) {}
+  // i's event is next in the queue (handled after the present one): what its handling reads first
+  // may be fetched now.
+  void ext_prefetch_next(int) {}
   bool ext_divert_wall(int, int, double) { return false; }
   void ext_snapshot(Snapshot<D>&) {}
   void ext_sample(ThermoSample&) {}
@@ -332,6 +335,7 @@ class EdmCore {
         if (next_id < N_) {
           __builtin_prefetch(&hot_[next_id]);
           __builtin_prefetch(&cold_[next_id]);
+          derived().ext_prefetch_next(next_id);
         }
       }
       handle(id, t);

@@ -20,6 +20,7 @@
 #include "engine/edm/core.hpp"
 #include "engine/flatten.hpp"
 #include "engine/hybrid/cost.hpp"
+#include "engine/hybrid/meet.hpp"
 #include "engine/hybrid/rest.hpp"
 #include "engine/hybrid/switching.hpp"
 #include "engine/renumber.hpp"
@@ -1130,7 +1131,7 @@ class HybridEngine final : public edm::EdmCore<D, CalendarQueue, HybridEngine<D>
   }
   // The candidates in cells at least as wide as two of them can be apart and still meet within
   // the window: the sum of their radii plus twice the fastest one's speed times the window
-  // (|r + u s| = R_a + R_b for some s < horizon needs |r| < R_a + R_b + |u| horizon). The pairs
+  // (hybrid::meet_cell_width, tested in tests/hybrid/test_meet.cpp). The pairs
   // of neighbouring cells are then every pair that can meet; hold_unfinished tests only those,
   // with the same test in the same arithmetic, so the hold is the one the test of every pair
   // gives (the held list is used as a set). In the stability map's dense gas at e = 0.1
@@ -1149,7 +1150,7 @@ class HybridEngine final : public edm::EdmCore<D, CalendarQueue, HybridEngine<D>
       lo = lo.cwiseMin(x);
       hi = hi.cwiseMax(x);
     }
-    const double cut = (2.0 * rmax + 2.0 * vmax * horizon) * (1.0 + 1e-9);
+    const double cut = hybrid::meet_cell_width(rmax, vmax, horizon);
     if (!(cut < kNever)) return false;
     for (int k = 0; k < D; ++k) {
       if (sys_.periodic[k]) {
@@ -1176,20 +1177,10 @@ class HybridEngine final : public edm::EdmCore<D, CalendarQueue, HybridEngine<D>
   CellGrid<D> hgrid_;
   std::vector<int> hg_start_, hg_items_;
 
-  // When two grains at separation r (centres) with constant relative velocity u first touch (their
-  // centres sig apart): the first root of |r + u s| = sig, in a form without cancellation; kNever
-  // when they move apart or pass each other, 0 when they approach already touching.
-  static double meet_time(const Vec<D>& r, const Vec<D>& u, double sig) {
-    const double b = r.dot(u);
-    if (!(b < 0.0)) return kNever;
-    const double c = r.squaredNorm() - sig * sig;
-    if (!(c > 0.0)) return 0.0;
-    const double disc = b * b - u.squaredNorm() * c;
-    return disc < 0.0 ? kNever : c / (-b + std::sqrt(disc));
-  }
-  // Whether they touch now or within the time `horizon`.
+  // (engine/hybrid/meet.hpp)
+  static double meet_time(const Vec<D>& r, const Vec<D>& u, double sig) { return hybrid::meet_time<D>(r, u, sig); }
   static bool meet_within(const Vec<D>& r, const Vec<D>& u, double sig, double horizon) {
-    return r.squaredNorm() - sig * sig <= 0.0 || meet_time(r, u, sig) < horizon;
+    return hybrid::meet_within<D>(r, u, sig, horizon);
   }
   static constexpr std::size_t kMaxEarly = 256, kMaxEarlyPairs = std::size_t{1} << 20;
 

@@ -1101,7 +1101,7 @@ class HybridEngine final : public edm::EdmCore<D, CalendarQueue, HybridEngine<D>
       if (b == a || (cand_[b] == 2 && b < a)) return;  // each pair once
       Vec<D> r = hot_[a].x - hot_[b].x;
       min_image(r);
-      if (meet_within(r, hot_[a].v - hot_[b].v, hot_[a].R + hot_[b].R, horizon)) {
+      if (hybrid::meet_within<D>(r, Vec<D>(hot_[a].v - hot_[b].v), hot_[a].R + hot_[b].R, horizon)) {
         held_.push_back(a);
         held_.push_back(b);
       }
@@ -1124,7 +1124,7 @@ class HybridEngine final : public edm::EdmCore<D, CalendarQueue, HybridEngine<D>
         if (meets || (mode_[k] != kHard && mode_[k] != kPending)) return;
         const Vec<D> r = hot_[a].x - this->position_at(k, t) - shift;
         const Vec<D> u = hot_[a].v - (hot_[k].v + (t - hot_[k].t) * g_);
-        meets = meet_within(r, u, hot_[a].R + hot_[k].R, horizon);
+        meets = hybrid::meet_within<D>(r, u, hot_[a].R + hot_[k].R, horizon);
       });
       if (meets) held_.push_back(a);
     }
@@ -1177,11 +1177,6 @@ class HybridEngine final : public edm::EdmCore<D, CalendarQueue, HybridEngine<D>
   CellGrid<D> hgrid_;
   std::vector<int> hg_start_, hg_items_;
 
-  // (engine/hybrid/meet.hpp)
-  static double meet_time(const Vec<D>& r, const Vec<D>& u, double sig) { return hybrid::meet_time<D>(r, u, sig); }
-  static bool meet_within(const Vec<D>& r, const Vec<D>& u, double sig, double horizon) {
-    return hybrid::meet_within<D>(r, u, sig, horizon);
-  }
   static constexpr std::size_t kMaxEarly = 256, kMaxEarlyPairs = std::size_t{1} << 20;
 
   // The list entries of the grains released at this substep leave the lists (they touch nothing:
@@ -1943,7 +1938,7 @@ class HybridEngine final : public edm::EdmCore<D, CalendarQueue, HybridEngine<D>
       }
       Vec<D> r = hot_[e.i].x - hot_[e.j].x;
       min_image(r);
-      s = std::min(s, meet_time(r, vh_[e.i] - vh_[e.j], hot_[e.i].R + hot_[e.j].R));
+      s = std::min(s, hybrid::meet_time<D>(r, Vec<D>(vh_[e.i] - vh_[e.j]), hot_[e.i].R + hot_[e.j].R));
     });
     if (fixed) return 1;
     // The last grid point strictly before s.

@@ -108,15 +108,30 @@ def run_repeated(matep, scene, sets, out_dir, repeat=1, timeout=None) -> Run:
     """Runs `repeat` times (same deterministic scene) and keeps the last run with the median of
     the wall times: the machines are shared and noisy. With repeat > 1 each run has a memory
     layout of its own (run_matep's `layout`), the same ones for every scene and version."""
+    return run_interleaved(matep, [(scene, sets, out_dir)], repeat, timeout)[0]
+
+
+def run_interleaved(matep, jobs, repeat=1, timeout=None) -> list[Run]:
+    """run_repeated for several runs (jobs: (scene, sets, out_dir) each) whose times are compared:
+    round k runs every job once, in the list's order, before round k + 1, so that a drift of the
+    host's speed over the rounds enters every job alike instead of the jobs run last (a job run
+    `repeat` times in a row, then the next, put a 6 ms cell's EDM and hybrid runs 20 % apart on a
+    drifting host where alternated rounds agree; charts/README.md). A job whose first run gave no
+    summary is not repeated. Each job keeps its last run, with the median of its wall times."""
     lay = (lambda k: k) if repeat > 1 else (lambda k: None)
-    runs = [run_matep(matep, scene, sets, out_dir, timeout, lay(0))]
-    while len(runs) < repeat and runs[0].summary is not None:
-        runs.append(run_matep(matep, scene, sets, out_dir, timeout, lay(len(runs))))
-    r = runs[-1]
-    if r.summary is not None and len(runs) > 1:
-        r.summary = dict(r.summary)
-        r.summary["wall_seconds"] = statistics.median(x.wall_seconds for x in runs)
-    return r
+    runs = [[] for _ in jobs]
+    for k in range(repeat):
+        for j, (scene, sets, out_dir) in enumerate(jobs):
+            if k == 0 or runs[j][0].summary is not None:
+                runs[j].append(run_matep(matep, scene, sets, out_dir, timeout, lay(k)))
+    out = []
+    for rs in runs:
+        r = rs[-1]
+        if r.summary is not None and len(rs) > 1:
+            r.summary = dict(r.summary)
+            r.summary["wall_seconds"] = statistics.median(x.wall_seconds for x in rs)
+        out.append(r)
+    return out
 
 
 def check_soft(matep, scene, sets: dict) -> dict:

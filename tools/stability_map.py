@@ -12,7 +12,8 @@ gravity setting) and charts/stability_map_ratio.png (the hybrid's wall time over
 method's, with its accuracy, per cell). --quick runs a 2 x 2 map of 108 particles and 2 seeds (a few
 seconds; the test suite's mode). --repeat N runs each seed N times, each with a memory layout of its
 own (tools/matep_runs.py run_matep), and keeps the median wall time: a single run's time varies by up
-to 40 % with the layout (charts/README.md).
+to 40 % with the layout (charts/README.md). The repeats of EDM, TDM at t_c/50 and the hybrid, whose
+times make the hybrid's ratio, alternate round by round (tools/matep_runs.py run_interleaved).
 
 The case: 500 unit spheres (unit mass) on a face-centred cubic lattice (5 x 5 x 5 cells; it reaches
 every packing fraction of the map, up to 0.55) sized for the packing fraction, Maxwellian velocities
@@ -56,7 +57,7 @@ import tempfile
 from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from matep_runs import check_soft, import_pyplot, run_repeated, write_csv  # noqa: E402
+from matep_runs import check_soft, import_pyplot, run_interleaved, run_repeated, write_csv  # noqa: E402
 
 FIELDS = ["gravity", "method", "setting", "e", "phi", "status", "outcome", "wall_seconds", "time_reached", "dt",
           "max_stable_dt", "max_overlap_relative", "observable", "observable_se", "reference", "deviation",
@@ -203,9 +204,20 @@ def sweep(matep, work: Path, es, phis, n, end, seeds, log, repeat=1, gravities=G
                         ("tdm", "0.8 limit", {**soft, "run.dt": 0.8 * lim}, 0.8 * lim, 1),
                         ("tdm", "2 limit", {**soft, "run.dt": 2.0 * lim}, 2.0 * lim, 1),
                         ("hybrid", "default", {**base, "run.method": "hybrid", "run.threads": 1}, math.nan, seeds)]
+                # The hybrid's ratio compares the runs of EDM, TDM at t_c/50 and the hybrid: their
+                # repeats alternate (run_interleaved), the once-run TDM panels follow.
+                timed = [r for r in runs if r[4] == seeds]
+                jobs = [(scene, sets, run_folder(work, gravity, method, setting, e, phi, s))
+                        for method, setting, sets, dt, nseeds in timed for s, scene in enumerate(scenes)]
+                results = run_interleaved(matep, jobs, repeat, timeout=RUN_TIMEOUT)
+                done = {}
+                for k, (method, setting, sets, dt, nseeds) in enumerate(timed):
+                    done[(method, setting)] = summarize(results[k * seeds:(k + 1) * seeds], gravity, e, phi, method,
+                                                        setting, dt, lim, end)
                 cell = []
                 for method, setting, sets, dt, nseeds in runs:
-                    cell.append(run_method(matep, work, scenes[:nseeds], gravity, e, phi, method, setting, sets, dt,
+                    cell.append(done.get((method, setting)) or
+                                run_method(matep, work, scenes[:nseeds], gravity, e, phi, method, setting, sets, dt,
                                            lim, end, repeat))
                 edm_ok = cell[0]["outcome"] == "stable"
                 if not edm_ok:  # the reference: TDM at t_c/200
@@ -254,12 +266,19 @@ def assess(cell):
         hyb["ratio"] = hyb["wall_seconds"] / best if hyb["outcome"] == "stable" else math.nan
 
 
+def run_folder(work, gravity, method, setting, e, phi, s) -> Path:
+    return work / (f"{'g' if gravity else 'free'}_{method}_{setting.replace(' ', '_').replace('/', '_')}"
+                   f"_e{e}_phi{phi}_s{s}")
+
+
 def run_method(matep, work, scenes, gravity, e, phi, method, setting, sets, dt, lim, end, repeat) -> dict:
-    results = []
-    for s, scene in enumerate(scenes):
-        folder = work / (f"{'g' if gravity else 'free'}_{method}_{setting.replace(' ', '_').replace('/', '_')}"
-                         f"_e{e}_phi{phi}_s{s}")
-        results.append(run_repeated(matep, scene, sets, folder, repeat, timeout=RUN_TIMEOUT))
+    results = [run_repeated(matep, scene, sets, run_folder(work, gravity, method, setting, e, phi, s), repeat,
+                            timeout=RUN_TIMEOUT) for s, scene in enumerate(scenes)]
+    return summarize(results, gravity, e, phi, method, setting, dt, lim, end)
+
+
+def summarize(results, gravity, e, phi, method, setting, dt, lim, end) -> dict:
+    """One method's row of a cell from its runs, one per seed."""
     outcomes = [OUTCOME.get(r.status, "failed") for r in results]
     w = worst(outcomes)
     first_bad = next((r for r, o in zip(results, outcomes) if o == w), results[0])
@@ -275,7 +294,7 @@ def run_method(matep, work, scenes, gravity, e, phi, method, setting, sets, dt, 
             "max_overlap_relative": max((float((r.summary or {}).get("max_overlap_relative", math.nan))
                                          for r in results), default=math.nan),
             "observable": obs, "observable_se": se, "reference": "", "deviation": math.nan, "ratio": math.nan,
-            "seeds": len(scenes), "message": first_bad.message}
+            "seeds": len(results), "message": first_bad.message}
 
 
 def cell_text(r):

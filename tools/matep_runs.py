@@ -47,6 +47,7 @@ class Run:
 
     def __init__(self, rc, status, message, summary, out_dir):
         self.rc, self.status, self.message, self.summary, self.out_dir = rc, status, message, summary, out_dir
+        self.walls = []  # run_interleaved: each round's wall time, in round order
 
     @property
     def wall_seconds(self) -> float:
@@ -127,6 +128,7 @@ def run_interleaved(matep, jobs, repeat=1, timeout=None) -> list[Run]:
     out = []
     for rs in runs:
         r = rs[-1]
+        r.walls = [x.wall_seconds for x in rs]
         if r.summary is not None and len(rs) > 1:
             r.summary = dict(r.summary)
             r.summary["wall_seconds"] = statistics.median(x.wall_seconds for x in rs)

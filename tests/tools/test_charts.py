@@ -1,12 +1,12 @@
 #!/usr/bin/python3
 """ctest for the chart tools: runs tools/bench_accuracy.py (its four cases), tools/stability_map.py
-in --quick mode, or tools/collapse_chains.py on a few systems, from the command line, as a user
-would, and checks the CSV behind each chart:
+in --quick mode, tools/collapse_chains.py on a few systems, or tools/cooling_seeds.py on two seeds,
+from the command line, as a user would, and checks the CSV behind each chart:
 one row per method and setting (cell), finite wall time and error wherever a run was made, and
 rows marked "refused" only where the CLI really refuses (the hybrid method while it is not
 available, a TDM step above the stability limit). Also checks that each PNG was written.
 
-    /usr/bin/python3 tests/tools/test_charts.py accuracy|map|chains --matep build/matep --work DIR
+    /usr/bin/python3 tests/tools/test_charts.py accuracy|map|chains|cooling --matep build/matep --work DIR
 """
 from __future__ import annotations
 
@@ -254,9 +254,39 @@ def check_chains(matep, out, hybrid_refused):
                    f"{where}: hybrid {r['hybrid_err']} off converged TDM ({r['hybrid_switches']} switches)")
 
 
+def check_cooling(matep, out, hybrid_refused):
+    """tools/cooling_seeds.py on the shipped seed and one more, two rounds: a row per seed, EDM's end
+    (its collapse before t = 100, or t = 100), the hybrid reaching that end, having turned grains soft
+    wherever EDM collapsed (the stability rule hands the collapsing cluster to the soft set instead of
+    ending the run), the ratio the median of its rounds; bad input refused with the option named."""
+    if hybrid_refused:
+        print("cooling: skipped (the hybrid is refused by this matep)")
+        return
+    for bad, word in ((["--seeds", "x"], "--seeds"), (["--rounds", "0"], "--rounds")):
+        p = subprocess.run(["/usr/bin/python3", REPO / "tools/cooling_seeds.py", "--matep", matep, "--out", out, *bad],
+                           capture_output=True, text=True)
+        expect(p.returncode == 2 and word in p.stderr and not (out / "cooling_seeds.csv").exists(),
+               f"cooling: {bad} gave exit {p.returncode}: {p.stderr.strip()}")
+    run_tool([REPO / "tools/cooling_seeds.py", "--matep", matep, "--out", out, "--seeds", "5,9", "--rounds", "2"])
+    rows = read_csv(out / "cooling_seeds.csv")
+    expect([r["seed"] for r in rows] == ["5", "9"], f"cooling: seeds {[r['seed'] for r in rows]}")
+    for r in rows:
+        where = f"cooling: seed {r['seed']}"
+        end = num(r["edm_end"])
+        expect(0.0 < end <= 100.0, f"{where}: EDM's end {end}")
+        expect((r["edm_status"] == "collapse") == (end < 100.0), f"{where}: EDM {r['edm_status']} at t = {end}")
+        expect(r["hybrid_status"] == "ok", f"{where}: the hybrid ended {r['hybrid_status']} before EDM's end")
+        if r["edm_status"] == "collapse":
+            expect(int(r["soft_particle_steps"]) > 0 and int(r["to_soft"]) > 0,
+                   f"{where}: EDM collapsed, the hybrid turned nothing soft")
+        lo, mid, hi = num(r["ratio_min"]), num(r["ratio"]), num(r["ratio_max"])
+        expect(0.0 < lo <= mid <= hi and math.isfinite(hi), f"{where}: ratio {lo} {mid} {hi}")
+    check_png(out / "cooling_seeds.png")
+
+
 def main():
     ap = argparse.ArgumentParser()
-    ap.add_argument("which", choices=["accuracy", "map", "chains"])
+    ap.add_argument("which", choices=["accuracy", "map", "chains", "cooling"])
     ap.add_argument("--matep", required=True)
     ap.add_argument("--work", required=True)
     args = ap.parse_args()
@@ -272,6 +302,8 @@ def main():
         check_pressure(matep, out, hybrid_refused)
     elif args.which == "chains":
         check_chains(matep, out, hybrid_refused)
+    elif args.which == "cooling":
+        check_cooling(matep, out, hybrid_refused)
     else:
         check_map(matep, out, hybrid_refused)
     if failures:

@@ -17,7 +17,7 @@ grains that come near, while it still collides; EDM resolves the same cluster wi
 collapses or the run ends. How long such a cluster lives, and how many grains it draws in, differs from
 seed to seed by an order of magnitude (charts/README.md, "The cooling gas over ten seeds").
 Run pinned to one core (taskset -c 1) on an otherwise idle machine; the ratio is a median of paired
-rounds, but the machines are shared and a single seed's ratio still moves by about 0.1 between runs.
+rounds, but the machines are shared and a single seed's ratio still moves by up to 0.15 between runs.
 """
 from __future__ import annotations
 

@@ -206,9 +206,9 @@ def sweep(matep, work: Path, es, phis, n, end, seeds, log, repeat=1, gravities=G
                         ("tdm", "2 limit", {**soft, "run.dt": 2.0 * lim}, 2.0 * lim, 1),
                         ("hybrid", "default", {**base, "run.method": "hybrid", "run.threads": 1}, math.nan, seeds)]
                 # The hybrid's ratio compares the runs of EDM, TDM at t_c/50 and the hybrid: their
-                # repeats alternate (run_interleaved), the once-run TDM panels follow.
-                # Within a round, seed by seed, the hybrid's run right after EDM's and before TDM's (the
-                # slowest): the pairs the ratio is taken from ran seconds apart at most.
+                # repeats alternate (run_interleaved), seed by seed within a round, the hybrid's run
+                # right after EDM's and before TDM's (the slowest), so that each pair the ratio is
+                # taken from ran seconds apart at most; the once-run TDM panels follow.
                 timed = sorted((r for r in runs if r[4] == seeds), key=lambda r: r[0] != "edm" and r[0] != "hybrid")
                 order = [(k, s) for s in range(seeds) for k in range(len(timed))]
                 jobs = [(scenes[s], timed[k][2], run_folder(work, gravity, timed[k][0], timed[k][1], e, phi, s))
@@ -273,8 +273,8 @@ def assess(cell):
 def paired_ratio(a, b) -> float:
     """a's wall time over b's. With repeats (--repeat, run_interleaved), the median of the ratios of
     the runs of one seed in one round, which ran one after the other: a drift of the host's speed
-    between rounds cancels in each, where a ratio of the two medians kept it (the dilute cell
-    e = 0.1, phi = 0.05 gave 1.19-1.37 over three runs of 15 rounds as a ratio of medians).
+    between rounds cancels in each, where a ratio of the two medians kept it (three runs of 15
+    rounds of the dilute cell e = 0.1, phi = 0.05: 1.29-1.36 paired, 1.12-1.37 as a ratio of medians).
     Otherwise the ratio of the medians over the seeds."""
     ra, rb = a.get("round_walls") or [], b.get("round_walls") or []
     pairs = [x / y for wa, wb in zip(ra, rb) if len(wa) == len(wb) > 1 for x, y in zip(wa, wb)

@@ -6,8 +6,8 @@
 For each seed (run.seed: another random start of the same 10 000-disk cooling gas), EDM runs to
 t = 100 or its inelastic collapse, whichever comes first (its time_reached); the hybrid runs the same
 seed to that time. The two then run `--rounds` times alternated (EDM, then the hybrid, a round at a
-time), and the seed's ratio is the median of the rounds' ratios of engine wall times (summary.json's
-wall_seconds). Writes cooling_seeds.csv (one row per seed: EDM's end and status, both medians, the
+time: tools/matep_runs.py run_interleaved), and the seed's ratio is the median of the rounds' ratios
+of engine wall times (summary.json's wall_seconds). Writes cooling_seeds.csv (one row per seed: EDM's end and status, both medians, the
 ratio, the hybrid's soft particle-steps and switches) and cooling_seeds.png (the ratio per seed, with
 the line 1.25 the hybrid-envelope issue asks of the shipped seed).
 
@@ -28,7 +28,7 @@ import sys
 from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from matep_runs import CASES, import_pyplot, run_matep, write_csv  # noqa: E402
+from matep_runs import CASES, import_pyplot, run_interleaved, run_matep, write_csv  # noqa: E402
 
 SCENE = CASES / "cooling_clusters.toml"
 FIELDS = ["seed", "edm_end", "edm_status", "edm_seconds", "hybrid_seconds", "ratio", "ratio_min", "ratio_max",
@@ -61,21 +61,18 @@ def measure(matep, work: Path, seed: int, rounds: int, log) -> dict:
         raise RuntimeError(f"seed {seed}: EDM gave no result ({first.status}: {first.message})")
     end = first.time_reached
     hyb_sets = {"run.method": "hybrid", "run.end_time": end, "run.seed": seed}
-    edm_w, hyb_w, last = [], [], None
-    for _ in range(rounds):
-        e = run_matep(matep, SCENE, edm_sets, work / f"edm_s{seed}", RUN_TIMEOUT)
-        h = run_matep(matep, SCENE, hyb_sets, work / f"hybrid_s{seed}", RUN_TIMEOUT)
-        if e.summary is None or h.summary is None:
-            bad = e if e.summary is None else h
-            raise RuntimeError(f"seed {seed}: a run gave no result ({bad.status}: {bad.message})")
-        edm_w.append(e.wall_seconds)
-        hyb_w.append(h.wall_seconds)
-        last = h
+    # The rounds alternated as the stability map's (each round a memory layout of its own).
+    edm, hyb = run_interleaved(matep, [(SCENE, edm_sets, work / f"edm_s{seed}"),
+                                       (SCENE, hyb_sets, work / f"hybrid_s{seed}")], rounds, RUN_TIMEOUT)
+    for r in (edm, hyb):
+        if r.summary is None or len(r.walls) < rounds or not all(map(math.isfinite, r.walls)):
+            raise RuntimeError(f"seed {seed}: a run gave no result ({r.status}: {r.message})")
+    edm_w, hyb_w = edm.walls, hyb.walls
     ratios = [h / e for h, e in zip(hyb_w, edm_w)]
-    hy = last.summary.get("hybrid", {})
+    hy = hyb.summary.get("hybrid", {})
     row = {"seed": seed, "edm_end": end, "edm_status": first.status, "edm_seconds": statistics.median(edm_w),
            "hybrid_seconds": statistics.median(hyb_w), "ratio": statistics.median(ratios),
-           "ratio_min": min(ratios), "ratio_max": max(ratios), "hybrid_status": last.status,
+           "ratio_min": min(ratios), "ratio_max": max(ratios), "hybrid_status": hyb.status,
            "soft_particle_steps": int(hy.get("soft_particle_steps", 0)), "to_soft": int(hy.get("to_soft", 0)),
            "by_capture": int(hy.get("by_capture", 0))}
     log(f"seed {seed:3d}  EDM to {end:7.2f} ({first.status:8s}) {row['edm_seconds']:.4f} s  hybrid "

@@ -209,7 +209,7 @@ def sweep(matep, work: Path, es, phis, n, end, seeds, log, repeat=1, gravities=G
                 # repeats alternate (run_interleaved), seed by seed within a round, the hybrid's run
                 # right after EDM's and before TDM's (the slowest), so that each pair the ratio is
                 # taken from ran seconds apart at most; the once-run TDM panels follow.
-                timed = sorted((r for r in runs if r[4] == seeds), key=lambda r: r[0] != "edm" and r[0] != "hybrid")
+                timed = sorted((r for r in runs if r[4] == seeds), key=lambda r: r[0] == "tdm")
                 order = [(k, s) for s in range(seeds) for k in range(len(timed))]
                 jobs = [(scenes[s], timed[k][2], run_folder(work, gravity, timed[k][0], timed[k][1], e, phi, s))
                         for k, s in order]

@@ -22,7 +22,7 @@
 namespace matep {
 
 inline constexpr char kCheckpointMagic[8] = {'M', 'A', 'T', 'E', 'P', 'C', 'K', 'P'};
-inline constexpr std::uint32_t kCheckpointVersion = 12;  // 2: an EDM particle holds its collapse watch; 3: the hybrid's threads; 4: the switching rule's impact speeds; 5: the hybrid's grains in space order (engine/renumber.hpp); 6: the impact speed at the start of each rapid run (hybrid.speed_fall); 7: the EDM cells hold their first two particles; 8: arrays of equal elements saved as one (engine/state_archive.hpp); 9: the hybrid's coast counts; 10: the EDM particles' order (run.resort) and the map to the scene's ids; 11: the soft contacts' remembered springs without rolling torques unless the scene has them, the EDM lists' entries with their image shift; 12: the switching rule's history one record a grain
+inline constexpr std::uint32_t kCheckpointVersion = 13;  // 2: an EDM particle holds its collapse watch; 3: the hybrid's threads; 4: the switching rule's impact speeds; 5: the hybrid's grains in space order (engine/renumber.hpp); 6: the impact speed at the start of each rapid run (hybrid.speed_fall); 7: the EDM cells hold their first two particles; 8: arrays of equal elements saved as one (engine/state_archive.hpp); 9: the hybrid's coast counts; 10: the EDM particles' order (run.resort) and the map to the scene's ids; 11: the soft contacts' remembered springs without rolling torques unless the scene has them, the EDM lists' entries with their image shift; 12: the switching rule's history one record a grain; 13: the hybrid's last substep (a stop may precede a planned coast)
 inline constexpr const char* kCheckpointName = "checkpoint.bin";
 
 struct Checkpoint {

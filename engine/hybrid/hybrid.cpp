@@ -417,7 +417,7 @@ class HybridEngine final : public edm::EdmCore<D, CalendarQueue, HybridEngine<D>
                            particle_collisions());
       if (hset_.cost_measured && (hstats_.substeps & 0x3f) == 0) follow_measured_cost();
       // A stop request (a signal), after whole substeps: the soft set is then at t like the rest.
-      if (status_.empty() && (hstats_.substeps & 0x3f) == 0 && !predrifted_ && !coasting() && set_.stop &&
+      if (status_.empty() && (hstats_.substeps & 0x3f) == 0 && !predrifted_ && set_.stop &&
           set_.stop->load(std::memory_order_relaxed)) {
         status_ = "interrupted";
         message_ = fmt::format("stopped on request at t = {:.17g}", t);
@@ -1855,7 +1855,10 @@ class HybridEngine final : public edm::EdmCore<D, CalendarQueue, HybridEngine<D>
   // which the next substep applies at once instead of k drifts (equal up to round-off). The run
   // skips the substeps between (a coast) while nothing could happen at them:
   //  * no pending join, no sleeper, no wall entry, no fixed grain in a soft pair, no outlet and
-  //    no moving wall in the scene, no stop asked for;
+  //    no moving wall in the scene. A stop asked for does not end or forbid a coast (a run that
+  //    coasts where the uninterrupted one would not ends a round-off apart from it, and its resumed
+  //    run too): the stop comes at a substep (the soft set at its time), with the coast planned
+  //    after it saved in the checkpoint (sub_last_n_);
   //  * it ends before any other timed event of the run (sample, snapshot, checkpoint, inlet,
   //    end), at the next capture check (iface_due_), at the earliest single-grain release, and at
   //    the next check of the cost release and of the rest rule (their cadences count the skipped
@@ -1891,7 +1894,6 @@ class HybridEngine final : public edm::EdmCore<D, CalendarQueue, HybridEngine<D>
   std::int64_t coast_plan(double t) {
     if (!coast_scene_ || soft_.empty() || !pending_.empty() || asleep_ > 0 || !we_.empty() || !status_.empty())
       return 1;
-    if (set_.stop && set_.stop->load(std::memory_order_relaxed)) return 1;
     // Each soft grain: in contact (no coast), its release time, its reach (to the cell box's faces
     // and to half the skin from x0), and whether the cost release could free it. Checked first:
     // in a soft bed the first grain in contact ends the plan.
@@ -2740,7 +2742,7 @@ class HybridEngine final : public edm::EdmCore<D, CalendarQueue, HybridEngine<D>
     a(clock_);
     a(clock_t0_);
     a(clock_n_);
-    if constexpr (A::loading) sub_last_n_ = static_cast<std::int64_t>(clock_n_) - 1;  // no checkpoint in a coast
+    a(sub_last_n_);  // a stop at a substep may come with a coast planned after it
     a(dirty_);
     a(purge_);
     a(asleep_);
@@ -2822,7 +2824,7 @@ class HybridEngine final : public edm::EdmCore<D, CalendarQueue, HybridEngine<D>
   bool clock_ = false;
   double clock_t0_ = 0.0;
   std::uint64_t clock_n_ = 0;
-  std::int64_t sub_last_n_ = -1;  // the grid index of the last substep (clock_n_ - 1 but in a coast)
+  std::int64_t sub_last_n_ = -1;  // the grid index of the last substep (clock_n_ - 1 but in a coast; saved)
   bool coast_scene_ = false;      // no outlet, no moving wall: the soft set may coast
   bool dirty_ = true;
   bool purge_ = false;  // grains released at this substep still have list entries

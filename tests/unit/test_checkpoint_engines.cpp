@@ -101,7 +101,7 @@ std::vector<double> joined(const std::vector<double>& first, std::size_t cut, co
 // A run of one method: `run(settings hooks, observers)`.
 // Stopped after a random number of collisions (samples for TDM), at most 3/4 of the run's.
 template <int D, class Run>
-void check_resume(Run&& run, std::uint64_t seed, const char* what) {
+void check_resume(Run&& run, std::uint64_t seed, const char* what, int trials = 3) {
   // The uninterrupted run.
   Trace<D> whole;
   const RunResult<D> ref = run(nullptr, nullptr, &whole);
@@ -109,7 +109,7 @@ void check_resume(Run&& run, std::uint64_t seed, const char* what) {
   const bool by_collisions = whole.collisions() > 100;
   const std::uint64_t unit_max = std::max<std::uint64_t>(2, 3 * (by_collisions ? whole.collisions() : whole.samples()) / 4);
   std::mt19937_64 rng(seed);
-  for (int trial = 0; trial < 3; ++trial) {
+  for (int trial = 0; trial < trials; ++trial) {
     SCOPED_TRACE(::testing::Message() << what << " trial " << trial);
     // Stopped after a random number of collisions (or samples): the state at the stop is saved.
     std::atomic<bool> stop{false};
@@ -290,7 +290,8 @@ RunResult<D> run_case(const Scene& sc, const System<D>& sys, const CheckpointHoo
   return run_tdm<D>(sys, t, {obs});
 }
 
-void check_case(const std::string& name, const std::vector<std::string>& overrides, std::uint64_t seed) {
+void check_case(const std::string& name, const std::vector<std::string>& overrides, std::uint64_t seed,
+                int trials = 3) {
   const Scene sc = load_scene(test::kCasesDir + name, overrides);
   std::visit(
       [&](const auto& sys) {
@@ -298,7 +299,7 @@ void check_case(const std::string& name, const std::vector<std::string>& overrid
         auto run = [&](const CheckpointHooks* h, std::atomic<bool>* stop, Observer<D>* obs) {
           return run_case<D>(sc, sys, h, stop, obs);
         };
-        check_resume<D>(run, seed, name.c_str());
+        check_resume<D>(run, seed, name.c_str(), trials);
       },
       sc.system);
 }
@@ -325,15 +326,17 @@ TEST(CheckpointEngines, HybridCasesResumeBitForBit) {
 // (ball shells, periodic wraps).
 // The hybrid re-sorting its storage while no grain is soft (run.resort): a clustering gas of disks
 // whose grains go soft and back, resumed from random stops with its map to the scene's ids, its
-// renamed histories and the schedule of re-sorts.
+// renamed histories and the schedule of re-sorts. Twelve stops each: in the second run stops 7, 10
+// and 11 are asked while the soft set coasts (or just before), which once made the stopping run
+// step where the uninterrupted one coasted and end a round-off apart from it.
 TEST(CheckpointEngines, HybridReSortedResumesBitForBit) {
   const std::vector<std::string> gas = {"run.end_time=8", "output.thermo_interval=0.5", "particles.gas.count=2000",
                                         "domain.upper=[60.0,60.0]", "material.grain.restitution=0.3",
                                         "run.resort=0.05"};
-  check_case("cooling_clusters.toml", gas, 15);
+  check_case("cooling_clusters.toml", gas, 15, 12);
   std::vector<std::string> listed = gas;
   listed.push_back("run.neighbours=\"lists\"");
-  check_case("cooling_clusters.toml", listed, 16);
+  check_case("cooling_clusters.toml", listed, 16, 12);
 }
 
 TEST(CheckpointEngines, HybridOnListsResumesBitForBit) {

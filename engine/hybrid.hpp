@@ -41,7 +41,8 @@ struct HybridSettings {
                             // brings a grain back to its earlier partner within L t_c turns soft
                             // before it (engine/hybrid/hybrid.cpp lookahead_pair); 0 = off
   double hysteresis = 0.0;  // contact-free time before release; 0 = 10 k t_c (of the plan's t_c)
-  double skin = 0.001;      // least capture distance, as a fraction of the smallest diameter
+  double skin = 0.0;        // least capture distance, as a fraction of the smallest diameter; 0 = the
+                            // scene's default (least_capture below)
   double cost_ratio = 10.0; // cost of one EDM collision per particle / cost of one TDM particle-step
   bool cost_measured = false;  // the crossover follows the costs measured during the run, starting
                                // from cost_ratio (engine/hybrid/cost.hpp; not reproducible run to run)
@@ -55,6 +56,21 @@ struct HybridSettings {
                               // fork and join of each substep's parallel loops cost more than they
                               // save on fewer, as in TDM)
 };
+
+// The least capture distance as a fraction of the smallest diameter: `settings.skin` when set,
+// otherwise kWideSkin where grains come to rest or rapid sequences are strongly inelastic (gravity,
+// or a material whose restitution is velocity dependent or at most 0.25), kNarrowSkin elsewhere
+// (README "Hybrid dynamics", the capture row: there the floor serves round-off only, and at
+// kWideSkin it held the clusters of a cooling gas soft).
+inline constexpr double kWideSkin = 1e-3, kNarrowSkin = 1e-4;
+template <int D>
+double least_capture(const System<D>& system, const HybridSettings& settings) {
+  if (settings.skin > 0.0) return settings.skin;
+  bool wide = system.gravity.norm() > 0.0;
+  for (const Material& m : system.materials)
+    wide = wide || m.restitution.model != Restitution::Model::Constant || m.restitution.e <= 0.25;
+  return wide ? kWideSkin : kNarrowSkin;
+}
 
 // The checks run_hybrid makes before it starts (the soft plan, the substep against the stability
 // limit). Throws std::invalid_argument naming the key.

@@ -529,7 +529,7 @@ std::string describe(const Scene& scene, const System<D>& sys) {
                        h.repeats, h.stability, h.speed_fall, h.lookahead,
                        h.cost_measured ? fmt::format("N (N: the measured cost ratio, from {})", h.cost_ratio)
                                        : fmt::format("{}", h.cost_ratio),
-                       h.skin,
+                       least_capture(sys, h),
                        h.hysteresis > 0.0 ? h.hysteresis : 10.0 * h.stability * plan.contact_time,
                        h.rest_speed > 0.0 ? fmt::format("; quiet grains (speed < {} m/s) sleep", h.rest_speed)
                                           : std::string());

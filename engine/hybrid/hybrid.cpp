@@ -64,7 +64,7 @@ template <int D>
 Skins hybrid_skins(const System<D>& sys, const SoftPlan& plan, const HybridSettings& hs, double h) {
   const double dmin = 2.0 * sys.radius_range().first;
   Skins s;
-  s.capture = hs.skin * (dmin < kNever ? dmin : 0.0);
+  s.capture = least_capture(sys, hs) * (dmin < kNever ? dmin : 0.0);
   // The capture distance of a pair at the largest expected impact speed (each grain at most that
   // fast): capture_gap's formula with speed = impact_speed and vsoft_max = impact_speed.
   s.capture_max = std::max(s.capture, 2.0 * h * (3.0 * plan.impact_speed + sys.gravity.norm() * h));

@@ -215,7 +215,7 @@ TEST(HybridSwitch, AGroupOfGrainsWithinEachOthersSkinReturnsHardTogether) {
   ::testing::Test::RecordProperty("worst_position_vs_tdm", fmt::format("{:.3g}", worst));
 }
 
-// Hard grains beside a periodic face, each within its capture distance of a soft pair's image on
+// Hard grains beside a periodic face, each a few capture distances from a soft pair's image on
 // the other side and flying at it (one through the upper x face, one through the lower y face):
 // the capture check (with four soft grains it looks at the soft set directly instead of walking
 // the cells) finds the images across the faces and the grains join before they touch, so the
@@ -224,7 +224,8 @@ TEST(HybridSwitch, AGroupOfGrainsWithinEachOthersSkinReturnsHardTogether) {
 TEST(HybridCapture, HardGrainsMeetingSoftOnesAcrossPeriodicFacesJoinBeforeTheTouch) {
   System<3> s = periodic_unit_box(Vec<3>(5.0, 5.0, 5.0), 1e5);  // 4 cells an axis, not hashed
   // Each pair starts overlapping (soft); each grain's gap to the image of the pair's first grain
-  // (at x = 5.6, and at y = -0.6) is 5e-4 d (the least capture distance, hybrid.skin, is 1e-3 d).
+  // (at x = 5.6, and at y = -0.6) is 5e-4 d, five times the least capture distance (hybrid.skin,
+  // 1e-4 d): each is captured in flight, a few substeps before it would touch.
   add_grains(s,
              {Vec<3>(0.6, 2.5, 1.0), Vec<3>(1.6 - 1e-6, 2.5, 1.0), Vec<3>(4.5995, 2.5, 1.0),
               Vec<3>(2.5, 4.4, 3.5), Vec<3>(2.5, 3.4 + 1e-6, 3.5), Vec<3>(2.5, 0.4005, 3.5)},
@@ -281,10 +282,10 @@ TEST(HybridSwitch, ADenseGasThatEdmRunsStaysMostlyHard) {
 // The cost rule prices what a switch draws in (HybridEngine::region_cheaper_soft). Sphere B
 // bounces elastically between two fixed spheres 0.001 d away on either side: every 0.002 time
 // units, 500 collisions per unit time, five times the crossover 1 / (cost_ratio h) = 100 (linear
-// law, k = m* (pi / t_c)^2 for the plan's t_c = 0.05 of a pair, m* = m / 2; h = t_c / 50). Sphere D rests on top of B, 5e-4 d away
-// (within the capture distance; never collides). Alone, B and D collide at 250 per unit time on
+// law, k = m* (pi / t_c)^2 for the plan's t_c = 0.05 of a pair, m* = m / 2; h = t_c / 50). Sphere D rests on top of B, 5e-5 d away
+// (within the least capture distance, hybrid.skin = 1e-4 d; never collides). Alone, B and D collide at 250 per unit time on
 // average: the switch pays off and B turns soft by cost. With a column of ten more resting
-// spheres on D, each 5e-4 d above the one below, the capture would draw the column in at the
+// spheres on D, each 5e-5 d above the one below, the capture would draw the column in at the
 // first substep: twelve grains at 500 / 12 = 42 per unit time, cheaper hard, and B stays hard.
 // (In cooling_clusters.toml a switch of nine rapid grains drew 76 slow neighbours in this way and
 // held them soft for 3 time units.)
@@ -301,7 +302,7 @@ RunResult<3> caged_rattler(int column) {
   add(10.0 - 1.001, 5.0, 0.0, true);
   add(10.0 + 1.001, 5.0, 0.0, true);
   add(10.0, 5.0, 1.0, false);  // B
-  for (int k = 0; k <= column; ++k) add(10.0, 5.0 + (k + 1) * 1.0005, 0.0, false);  // D and the column
+  for (int k = 0; k <= column; ++k) add(10.0, 5.0 + (k + 1) * 1.00005, 0.0, false);  // D and the column
   EdmSettings es;
   es.end_time = 0.5;
   HybridSettings hs;

@@ -248,6 +248,50 @@ TEST(HybridCapture, HardGrainsMeetingSoftOnesAcrossPeriodicFacesJoinBeforeTheTou
   }
 }
 
+// The least capture distance (hybrid.skin unset) follows the scene: 1e-3 d where grains come to
+// rest (gravity) or rapid sequences are strongly inelastic (a restitution that is, or can fall to,
+// 0.25 or below), 1e-4 d elsewhere; an explicit skin is kept. A run reports it in metres. (At
+// 1e-4 d under gravity a settling bed kept a grain moving, and at e = 0.2 four grains in a line
+// ended 99 % off converged TDM; at 1e-3 d in a free gas at e = 0.5 the floor held clusters soft:
+// README "Hybrid dynamics", the capture row.)
+TEST(HybridCapture, TheLeastCaptureDistanceFollowsTheScene) {
+  // Two grains of diameter 0.5 flying apart in a periodic box: nothing turns soft.
+  const auto two_grains = [](double e) {
+    System<3> s = periodic_unit_box(Vec<3>(6.0, 6.0, 6.0), 1e5, e);
+    for (int k = 0; k < 2; ++k) {
+      s.x.push_back(Vec<3>(2.0 + 2.0 * k, 3.0, 3.0));
+      s.v.push_back(Vec<3>(k == 0 ? -0.1 : 0.1, 0.0, 0.0));
+      s.radius.push_back(0.25);
+      s.material.push_back(0);
+    }
+    return s;
+  };
+  EdmSettings es;
+  es.end_time = 1.0;
+  HybridSettings hs;
+  EXPECT_EQ(least_capture(two_grains(0.5), hs), kNarrowSkin);
+  EXPECT_EQ(least_capture(two_grains(0.26), hs), kNarrowSkin);
+  EXPECT_EQ(least_capture(two_grains(0.25), hs), kWideSkin);
+  EXPECT_EQ(least_capture(two_grains(0.1), hs), kWideSkin);
+  System<3> falling = two_grains(0.5);
+  falling.gravity = Vec<3>(0.0, 0.0, -1.0);
+  EXPECT_EQ(least_capture(falling, hs), kWideSkin);
+  System<3> power = two_grains(0.5);
+  power.materials[0].restitution.model = Restitution::Model::Power;  // e = B u^-b: falls with speed
+  power.materials[0].restitution.B = 0.9;
+  power.materials[0].restitution.b = 0.1;
+  EXPECT_EQ(least_capture(power, hs), kWideSkin);
+  for (const double e : {0.5, 0.1}) {
+    const RunResult<3> r = run_hybrid<3>(two_grains(e), es, hs);
+    ASSERT_EQ(r.status, "ok") << r.message;
+    EXPECT_DOUBLE_EQ(r.hybrid.skin, (e > 0.25 ? kNarrowSkin : kWideSkin) * 0.5) << e;
+  }
+  hs.skin = 0.005;
+  EXPECT_EQ(least_capture(falling, hs), 0.005);
+  const RunResult<3> r = run_hybrid<3>(two_grains(0.5), es, hs);
+  EXPECT_DOUBLE_EQ(r.hybrid.skin, 0.005 * 0.5);
+}
+
 // A dense gas that EDM runs to its end stays mostly hard: 512 spheres at phi = 0.5, e = 0.5,
 // T = 1 (the earlier stability map's worst cell). With a capture distance fixed at 0.01 d (each
 // grain then has 0.7 neighbours within it), the cost rule judging single grains and rapid runs

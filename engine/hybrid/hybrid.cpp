@@ -547,7 +547,8 @@ class HybridEngine final : public edm::EdmCore<D, CalendarQueue, HybridEngine<D>
   // joins the soft set): twice the most the gap can close in one substep (its speed and gravity's
   // gain, and twice the fastest soft grain's speed: a soft grain may speed up inside the
   // substep), so that the join comes a substep before the touch at the latest; at least
-  // hybrid.skin (round-off, and resting grains), at most the distance of a pair at the largest
+  // least_capture's distance (engine/hybrid.hpp: round-off, grains at rest under gravity and the
+  // rapid sequences of strongly inelastic grains), at most the distance of a pair at the largest
   // expected impact speed (cskin_, the EDM cells' margin: their reach).
   // A fixed capture skin made a dense gas sticky: at phi = 0.5 each grain has on average 0.7
   // neighbours within 0.01 d, so a soft seed drew most of the gas in and held it there

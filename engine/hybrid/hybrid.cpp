@@ -2801,12 +2801,7 @@ class HybridEngine final : public edm::EdmCore<D, CalendarQueue, HybridEngine<D>
   // Hertz t_c grows as v^(-1/5), 10 times at impacts 1e5 times slower.
   static constexpr double kLookaheadSince = 5.0, kLookaheadSpan = 10.0;
   static constexpr double kLookaheadGoesOn = 3.0;  // sequence_goes_on: the second trial's horizon, in dt1
-  // ... and only for strongly inelastic impacts: at e = 0.5 and above the hard sequences of the
-  // small systems measured end within 1 % of the soft ones; at 0.2 and below up to 25 times off.
-  // At 0.3 EDM ends within 25 % of converged TDM in every chain of three and four disks
-  // (tools/collapse_chains.py), the trial mended one five-disk line of 60 systems, and it fired
-  // 437 times a run in the stability map's e = 0.3, phi = 0.3 gas, where EDM is stable (14 x EDM).
-  static constexpr double kLookaheadMaxE = 0.25;
+  // ... and only for strongly inelastic impacts, e <= kLookaheadMaxE (engine/hybrid.hpp).
   // A rapid run of impacts at e <= kNoFallMaxE turns soft without the fall of its impact speed.
   static constexpr double kNoFallMaxE = 0.3;
   SwitchRule::Params switch_params_;

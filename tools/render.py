@@ -10,14 +10,17 @@ output.format "vtk" or "vtk_ascii"), draws every grain as a sphere of its radius
 (2D: lines), and writes one PNG (the snapshot nearest --time, default the last: OUT_DIR/render.png
 unless --png), or with --frames every snapshot as DIR/frame_NNNNNN.png, and with --gif an animated
 GIF of them. It runs ParaView's pvbatch offscreen (Debian's paraview package, installed by
-tools/install-deps.sh), under xvfb-run when offscreen rendering needs a display. Without
-ParaView it says so and exits with status 3.
+tools/install-deps.sh). Without a display it starts its own virtual one (Xvfb, which picks a free
+display number itself), falling back to xvfb-run when Xvfb is not on PATH. Without ParaView it says
+so and exits with status 3.
 """
 from __future__ import annotations
 
 import argparse
+import contextlib
 import json
 import os
+import select
 import shutil
 import subprocess
 import sys
@@ -27,6 +30,43 @@ from pathlib import Path
 
 FIELDS = ["speed", "mode", "group", "material", "radius", "id"]
 INNER = "MATEP_RENDER_INNER"
+
+
+@contextlib.contextmanager
+def virtual_display(timeout: float = 30.0):
+    """A private X display for pvbatch: yields the DISPLAY string (None when none could be started).
+
+    Xvfb is asked to choose a free display number itself and to write it to a pipe once it accepts
+    connections (-displayfd), so there is neither the race of xvfb-run -a (two servers taking the same
+    number, or a stale socket left by a killed server under a free lock) nor a wait guessed in
+    seconds: both failed a render once on a loaded 2-core machine."""
+    xvfb = shutil.which("Xvfb")
+    if not xvfb:
+        yield None
+        return
+    rfd, wfd = os.pipe()
+    proc = subprocess.Popen([xvfb, "-displayfd", str(wfd), "-screen", "0", "1280x1024x24", "-nolisten", "tcp"],
+                            pass_fds=(wfd,), stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    os.close(wfd)
+    number = b""
+    deadline = time.monotonic() + timeout
+    try:
+        while not number.endswith(b"\n") and time.monotonic() < deadline and proc.poll() is None:
+            ready, _, _ = select.select([rfd], [], [], 0.5)
+            if ready:
+                chunk = os.read(rfd, 64)
+                if not chunk:
+                    break
+                number += chunk
+        os.close(rfd)
+        yield f":{int(number)}" if number.strip().isdigit() and proc.poll() is None else None
+    finally:
+        proc.terminate()
+        try:
+            proc.wait(timeout=10)
+        except subprocess.TimeoutExpired:
+            proc.kill()
+            proc.wait()
 
 
 def frames_of(out_dir: Path) -> list[tuple[float, str, list[str]]]:
@@ -152,22 +192,28 @@ def main() -> int:
         return 3
     env = dict(os.environ, **{INNER: "1"})
     script = [str(Path(__file__).resolve())] + sys.argv[1:]
-    xvfb = ["xvfb-run", "-a", "-s", "-screen 0 1280x1024x24"] if shutil.which("xvfb-run") else None
-    # Debian's ParaView renders through X: without a display, under xvfb-run (a virtual one); else
-    # offscreen if the build can.
-    if xvfb and not os.environ.get("DISPLAY"):
-        # A virtual display that was not ready in time fails the window: try again, waiting longer
-        # each time (on a loaded 2-core machine three quick tries all failed once, in the test
-        # suite's render of every case).
-        for attempt in range(5):
-            r = subprocess.run(xvfb + [pvbatch] + script, env=env, capture_output=True, text=True)
-            if r.returncode == 0 or "CreateAWindow" not in r.stderr:
-                break
-            time.sleep(2 ** attempt)
-    else:
+    # Debian's ParaView renders through X. With a display: offscreen through it. Without one, or if
+    # that fails: on a private virtual display (a failed window start is tried again on a fresh
+    # server), else under xvfb-run.
+    r = None
+    if os.environ.get("DISPLAY"):
         r = subprocess.run([pvbatch, "--force-offscreen-rendering"] + script, env=env, capture_output=True, text=True)
-        if r.returncode != 0 and xvfb:
-            r = subprocess.run(xvfb + [pvbatch] + script, env=env, capture_output=True, text=True)
+    if (r is None or r.returncode != 0) and shutil.which("Xvfb"):
+        for attempt in range(3):
+            with virtual_display() as display:
+                if display is None:
+                    r = subprocess.CompletedProcess([], 4, "", "render.py: Xvfb did not start a display")
+                else:
+                    r = subprocess.run([pvbatch] + script, env=dict(env, DISPLAY=display),
+                                       capture_output=True, text=True)
+            if r.returncode == 0:
+                break
+            time.sleep(1 + attempt)
+    elif r is None or r.returncode != 0:
+        run_under = ["xvfb-run", "-a", "-s", "-screen 0 1280x1024x24"] if shutil.which("xvfb-run") else []
+        if run_under or r is None:
+            r = subprocess.run(run_under + [pvbatch] + ([] if run_under else ["--force-offscreen-rendering"])
+                               + script, env=env, capture_output=True, text=True)
     missing = [j[2] for j in jobs if not Path(j[2]).exists()]
     if r.returncode != 0 or missing:
         print(f"render.py: pvbatch failed (status {r.returncode}):\n{r.stderr[-2000:]}", file=sys.stderr)

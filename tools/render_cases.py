@@ -14,6 +14,8 @@ tests/tools/test_render.py reads as "skipped").
 from __future__ import annotations
 
 import argparse
+import contextlib
+import os
 import shutil
 import subprocess
 import sys
@@ -23,6 +25,8 @@ import tomllib
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parent.parent
+sys.path.insert(0, str(ROOT / "tools"))
+from render import virtual_display  # noqa: E402
 
 
 def quick_end(scene: dict) -> float:
@@ -58,7 +62,11 @@ def main() -> int:
     a.out.mkdir(parents=True, exist_ok=True)
     names = a.cases or sorted(p.stem for p in (ROOT / "cases").glob("*.toml"))
     failed = 0
-    with tempfile.TemporaryDirectory() as tmp:
+    # One private virtual display for every picture when there is none (render.py starts its own
+    # again should drawing through this one fail).
+    with tempfile.TemporaryDirectory() as tmp, \
+            (virtual_display() if not os.environ.get("DISPLAY") else contextlib.nullcontext()) as display:
+        env = dict(os.environ, DISPLAY=display) if display else None
         for name in names:
             path = ROOT / "cases" / f"{name}.toml"
             with open(path, "rb") as f:
@@ -77,7 +85,7 @@ def main() -> int:
                 continue
             png = a.out / f"{name}.png"
             v = subprocess.run([sys.executable, str(ROOT / "tools" / "render.py"), str(out), "--png", str(png),
-                                "--size", str(a.size[0]), str(a.size[1])], capture_output=True, text=True)
+                                "--size", str(a.size[0]), str(a.size[1])], capture_output=True, text=True, env=env)
             if v.returncode != 0 or not png.exists():
                 print(f"{name}: render.py failed (status {v.returncode}): {v.stderr[-500:]}")
                 failed += 1

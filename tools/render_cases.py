@@ -8,8 +8,8 @@ tools/render.py (ParaView), coloured by speed.
 start + a few contact times or events), enough to draw its grains and walls; without it each case
 runs to --fraction of its own end_time (default 1: the whole case; the README's gallery). Writes
 DIR/NAME.png (default charts/cases/) and prints one line per case; exits 0 only if every case gave a
-picture with grains on it. Without ParaView it says so and exits with status 3 (what
-tests/tools/test_render.py reads as "skipped").
+picture with grains on it. Without ParaView it says so and exits with status 3 (what the test
+suite's tools.render, CMakeLists.txt, reads as "skipped").
 """
 from __future__ import annotations
 

@@ -206,14 +206,17 @@ def main() -> int:
                 else:
                     r = subprocess.run([pvbatch] + script, env=dict(env, DISPLAY=display),
                                        capture_output=True, text=True)
-            if r.returncode == 0:
+            # Only a window that could not be made is tried again: any other failure would repeat.
+            if r.returncode == 0 or attempt == 2 or (display is not None and "CreateAWindow" not in r.stderr):
                 break
             time.sleep(1 + attempt)
     elif r is None or r.returncode != 0:
-        run_under = ["xvfb-run", "-a", "-s", "-screen 0 1280x1024x24"] if shutil.which("xvfb-run") else []
-        if run_under or r is None:
-            r = subprocess.run(run_under + [pvbatch] + ([] if run_under else ["--force-offscreen-rendering"])
-                               + script, env=env, capture_output=True, text=True)
+        if shutil.which("xvfb-run"):
+            r = subprocess.run(["xvfb-run", "-a", "-s", "-screen 0 1280x1024x24", pvbatch] + script, env=env,
+                               capture_output=True, text=True)
+        elif r is None:
+            r = subprocess.run([pvbatch, "--force-offscreen-rendering"] + script, env=env, capture_output=True,
+                               text=True)
     missing = [j[2] for j in jobs if not Path(j[2]).exists()]
     if r.returncode != 0 or missing:
         print(f"render.py: pvbatch failed (status {r.returncode}):\n{r.stderr[-2000:]}", file=sys.stderr)

@@ -39,13 +39,20 @@ def virtual_display(timeout: float = 30.0):
     Xvfb is asked to choose a free display number itself and to write it to a pipe once it accepts
     connections (-displayfd), so there is neither the race of xvfb-run -a (two servers taking the same
     number, or a stale socket left by a killed server under a free lock) nor a wait guessed in
-    seconds: both failed a render once on a loaded 2-core machine."""
+    seconds: both failed a render once on a loaded 2-core machine. -noreset: an X server resets
+    when its last client leaves, and refuses connections while it does; pvbatch connects more than
+    once, and the render test's pictures share one server, so on a loaded machine a connection came
+    during a reset ("bad X server connection"). With four busy loops on the server's core, the
+    first of four pictures drawn one after the other on one display failed, and so did one or two
+    of the render test's cases a round, each after three fresh servers (six in a trial: the same);
+    with -noreset all four pictures and all nine cases of three rounds drew."""
     xvfb = shutil.which("Xvfb")
     if not xvfb:
         yield None
         return
     rfd, wfd = os.pipe()
-    proc = subprocess.Popen([xvfb, "-displayfd", str(wfd), "-screen", "0", "1280x1024x24", "-nolisten", "tcp"],
+    proc = subprocess.Popen([xvfb, "-displayfd", str(wfd), "-screen", "0", "1280x1024x24", "-nolisten", "tcp",
+                             "-noreset"],
                             pass_fds=(wfd,), stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
     os.close(wfd)
     number = b""
@@ -212,14 +219,17 @@ def main() -> int:
             time.sleep(1 + attempt)
     elif r is None or r.returncode != 0:
         if shutil.which("xvfb-run"):
-            r = subprocess.run(["xvfb-run", "-a", "-s", "-screen 0 1280x1024x24", pvbatch] + script, env=env,
-                               capture_output=True, text=True)
+            r = subprocess.run(["xvfb-run", "-a", "-s", "-screen 0 1280x1024x24 -noreset", pvbatch] + script,
+                               env=env, capture_output=True, text=True)
         elif r is None:
             r = subprocess.run([pvbatch, "--force-offscreen-rendering"] + script, env=env, capture_output=True,
                                text=True)
     missing = [j[2] for j in jobs if not Path(j[2]).exists()]
     if r.returncode != 0 or missing:
-        print(f"render.py: pvbatch failed (status {r.returncode}):\n{r.stderr[-2000:]}", file=sys.stderr)
+        # ParaView's own error lines first (its stack trace, which ends the output, does not say why).
+        errors = [ln for ln in r.stderr.splitlines() if "ERR|" in ln or "Error" in ln][:5]
+        print(f"render.py: pvbatch failed (status {r.returncode}):\n" + "\n".join(errors) + "\n"
+              + r.stderr[-1500:], file=sys.stderr)
         return 4
     if a.gif:
         from PIL import Image

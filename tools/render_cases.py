@@ -87,7 +87,7 @@ def main() -> int:
             v = subprocess.run([sys.executable, str(ROOT / "tools" / "render.py"), str(out), "--png", str(png),
                                 "--size", str(a.size[0]), str(a.size[1])], capture_output=True, text=True, env=env)
             if v.returncode != 0 or not png.exists():
-                print(f"{name}: render.py failed (status {v.returncode}): {v.stderr[-500:]}")
+                print(f"{name}: render.py failed (status {v.returncode}): {v.stderr[:800]}")
                 failed += 1
                 continue
             share = painted(png)

@@ -10,11 +10,11 @@ the cell's reference.
 writes charts/stability_map.csv, charts/stability_map.png (one panel per method and step, a row per
 gravity setting) and charts/stability_map_ratio.png (the hybrid's wall time over the better pure
 method's, with its accuracy, per cell). --quick runs a 2 x 2 map of 108 particles and 2 seeds (a few
-seconds; the test suite's mode). --repeat N runs each seed N times, each with a memory layout of its
-own (tools/matep_runs.py run_matep), and keeps the median wall time: a single run's time varies by up
-to 40 % with the layout (charts/README.md). The repeats of EDM, TDM at t_c/50 and the hybrid, whose
-times make the hybrid's ratio, alternate round by round (tools/matep_runs.py run_interleaved), and the
-ratio is then the median of the ratios within a round and a seed (paired_ratio). The once-run TDM
+seconds; the test suite's mode). --repeat N runs each seed of EDM, TDM at t_c/50 and the hybrid, whose
+times make the hybrid's ratio, N times, each with a memory layout of its own (tools/matep_runs.py
+run_matep), and keeps the median wall time: a single run's time varies by up to 40 % with the layout
+(charts/README.md). Their repeats alternate round by round (tools/matep_runs.py run_interleaved), and
+the ratio is then the median of the ratios within a round and a seed (paired_ratio). The once-run TDM
 panels and the reference (TDM at t_c/200) run once: their times make no ratio.
 
 The case: 500 unit spheres (unit mass) on a face-centred cubic lattice (5 x 5 x 5 cells; it reaches
@@ -219,19 +219,18 @@ def sweep(matep, work: Path, es, phis, n, end, seeds, log, repeat=1, gravities=G
                 for k, (method, setting, sets, dt, nseeds) in enumerate(timed):
                     done[(method, setting)] = summarize([results[(k, s)] for s in range(seeds)], gravity, e, phi,
                                                         method, setting, dt, lim, end)
-                # The once-run TDM panels and the reference run once whatever --repeat says: no ratio
-                # is taken from their times (the reference is most of a gravity cell's time: 24 of
-                # the gravity half's 37 minutes a round), and their results do not depend on the
-                # memory layout that the repeats vary.
+                # The rest run once whatever --repeat says (run_method): no ratio is taken from their
+                # times (the reference is most of a gravity cell's time: 24 of the gravity half's 37
+                # minutes a round), and their results do not depend on the memory layout.
                 cell = []
                 for method, setting, sets, dt, nseeds in runs:
                     cell.append(done.get((method, setting)) or
                                 run_method(matep, work, scenes[:nseeds], gravity, e, phi, method, setting, sets, dt,
-                                           lim, end, 1))
+                                           lim, end))
                 edm_ok = cell[0]["outcome"] == "stable"
                 if not edm_ok:  # the reference: TDM at t_c/200
                     cell.append(run_method(matep, work, scenes, gravity, e, phi, *REFERENCE,
-                                           {**soft, "run.dt": chk["dt"] / 4.0}, chk["dt"] / 4.0, lim, end, 1))
+                                           {**soft, "run.dt": chk["dt"] / 4.0}, chk["dt"] / 4.0, lim, end))
                 assess(cell)
                 if not math.isnan(tc):
                     cell[1]["message"] = cell[1]["message"] or f"t_c = {tc:.6g}, stability limit {lim:.6g}"
@@ -294,8 +293,9 @@ def run_folder(work, gravity, method, setting, e, phi, s) -> Path:
                    f"_e{e}_phi{phi}_s{s}")
 
 
-def run_method(matep, work, scenes, gravity, e, phi, method, setting, sets, dt, lim, end, repeat) -> dict:
-    results = [run_repeated(matep, scene, sets, run_folder(work, gravity, method, setting, e, phi, s), repeat,
+def run_method(matep, work, scenes, gravity, e, phi, method, setting, sets, dt, lim, end) -> dict:
+    """A method whose time makes no ratio (the reference, the once-run TDM panels): one run a seed."""
+    results = [run_repeated(matep, scene, sets, run_folder(work, gravity, method, setting, e, phi, s),
                             timeout=RUN_TIMEOUT) for s, scene in enumerate(scenes)]
     return summarize(results, gravity, e, phi, method, setting, dt, lim, end)
 

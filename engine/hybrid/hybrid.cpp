@@ -893,6 +893,7 @@ class HybridEngine final : public edm::EdmCore<D, CalendarQueue, HybridEngine<D>
     // A pending grain flew without events since it stopped being hard: it may have left its shell.
     if (this->lists_ && !in_shell(i)) this->relist(i);
     set_mode(i, kSoft);
+    free_until_ = -kNever;  // the soft set's free flight was planned without i
     iface_flag_[i] = 0;
     cblo_[i].setConstant(kNever);  // relocate at the first substep (the box may be stale)
     cbhi_[i].setConstant(-kNever);
@@ -1893,6 +1894,7 @@ class HybridEngine final : public edm::EdmCore<D, CalendarQueue, HybridEngine<D>
   // Grid steps from the substep at t to the next one: more than 1 for a coast. Called after the
   // forces of t (touching_ holds this substep's contacts), before the full-step pass.
   std::int64_t coast_plan(double t) {
+    free_until_ = -kNever;
     if (!coast_scene_ || soft_.empty() || !pending_.empty() || asleep_ > 0 || !we_.empty() || !status_.empty())
       return 1;
     // Each soft grain: in contact (no coast), its release time, its reach (to the cell box's faces
@@ -1900,19 +1902,24 @@ class HybridEngine final : public edm::EdmCore<D, CalendarQueue, HybridEngine<D>
     // in a soft bed the first grain in contact ends the plan.
     const double gn = g_.norm();
     double s = static_cast<double>(kMaxCoast) * h_;  // the coast's longest span
+    double free = kNever;  // the soft set's free flight (free_until_): the list's half skin, the pairs' meets
     bool releasable = false;
+    // |v| s + |g| s (s + h) / 2 <= reach
+    const auto within = [&](int i, double reach) {
+      const double a = 0.5 * gn, b = vh_[i].norm() + 0.5 * gn * h_;
+      return a > 0.0 ? 2.0 * reach / (b + std::sqrt(b * b + 4.0 * a * reach)) : b > 0.0 ? reach / b : kNever;
+    };
     for (const int i : soft_) {
       if (touching_[i] || f_[i] != Vec<D>::Zero()) return 1;
       s = std::min(s, last_contact_[i] + hyst_ - t);
       const Vec<D>& x = hot_[i].x;
-      double reach = 0.5 * lskin_ - (x - x0_[i]).norm();
+      const double list_reach = 0.5 * lskin_ - (x - x0_[i]).norm();
+      if (!(list_reach > 0.0)) return 1;
+      double reach = list_reach;
       for (int k = 0; k < D; ++k) reach = std::min({reach, x[k] - cblo_[i][k], cbhi_[i][k] - x[k]});
-      if (!(reach > 0.0)) return 1;
-      // |v| s + |g| s (s + h) / 2 <= reach
-      const double a = 0.5 * gn, b = vh_[i].norm() + 0.5 * gn * h_;
-      const double smax = a > 0.0 ? 2.0 * reach / (b + std::sqrt(b * b + 4.0 * a * reach)) : b > 0.0 ? reach / b : kNever;
-      s = std::min(s, smax);
-      if (!(s >= 2.0 * h_)) return 1;
+      // (A grain at its cell box's face forbids the coast, not the free flight: the loop goes on.)
+      s = reach > 0.0 ? std::min(s, within(i, reach)) : 0.0;
+      free = std::min(free, within(i, list_reach));
       const std::uint8_t why = joined_by_[i] & static_cast<std::uint8_t>(~kEarly);
       releasable = releasable || (joined_by_[i] & kEarly) || (why != kByStability && why != kByCluster);
     }
@@ -1931,19 +1938,23 @@ class HybridEngine final : public edm::EdmCore<D, CalendarQueue, HybridEngine<D>
     s = std::min(s, iface_due_ - t);
     for (int id = this->N_; id < this->N_ + static_cast<int>(this->system_.size()); ++id)
       if (id != substep_id_ && queue_->contains(id)) s = std::min(s, queue_->time_of(id) - t);
-    if (!(s >= 2.0 * h_)) return 1;
     bool fixed = false;
     pairs_.for_each([&](const PairEntry& e) {
-      if (fixed || !(s >= 2.0 * h_)) return;
+      if (fixed || !(free >= 2.0 * h_)) return;
       if (mode_[e.i] == kFixed || mode_[e.j] == kFixed) {
         fixed = true;
         return;
       }
       Vec<D> r = hot_[e.i].x - hot_[e.j].x;
       min_image(r);
-      s = std::min(s, hybrid::meet_time<D>(r, Vec<D>(vh_[e.i] - vh_[e.j]), hot_[e.i].R + hot_[e.j].R));
+      free = std::min(free, hybrid::meet_time<D>(r, Vec<D>(vh_[e.i] - vh_[e.j]), hot_[e.i].R + hot_[e.j].R));
     });
     if (fixed) return 1;
+    // No soft grain touches anything before t + free (free_until_; capture's next checks). Its
+    // last grid point strictly before: at a touch the forces of its substep are no longer zero.
+    if (free >= 2.0 * h_) free_until_ = t + (std::ceil(free / h_) - 1.0) * h_;
+    s = std::min(s, free);
+    if (!(s >= 2.0 * h_)) return 1;
     // The last grid point strictly before s.
     std::int64_t k = static_cast<std::int64_t>(std::floor(s / h_));
     if (static_cast<double>(k) * h_ >= s) --k;
@@ -2079,19 +2090,32 @@ class HybridEngine final : public edm::EdmCore<D, CalendarQueue, HybridEngine<D>
       const double dt = t - hi.t;
       const Vec<D> xi = this->position_at(i, t);
       bool any = false, in = false;
-      double gmin = kNever;
-      const double vi = (hi.v + g_ * dt).norm();
+      double gmin = kNever, smin = kNever;
+      const Vec<D> vvi = hi.v + g_ * dt;
+      const double vi = vvi.norm();
       const double reach = capture_gap(vi);
+      // In the soft set's free flight (free_until_) each soft grain's course relative to i is a
+      // straight line at the grid points, u = v_i - v_j(t - h/2) - g h / 2 (the leapfrog's
+      // positions against i's parabola: the terms in g s^2 cancel), and i comes within its capture
+      // distance of j no sooner than that line does. Its distance there is bounded by the speeds
+      // gravity may add over the longest skip (i's, and twice the fastest soft grain's).
+      const bool exact = t < free_until_;
+      const double span = kMaxSkip * h_;
+      const double reach_max =
+          exact ? std::clamp(2.0 * h_ * (vi + g_.norm() * (3.0 * span + h_) + 2.0 * vsoft_max_), skin_, cskin_) : 0.0;
+      const Vec<D> ui = vvi - hdt_ * g_;
       const auto near = [&](int j, const Vec<D>& shift) {
         const std::uint8_t m = mode_[j];
         if (m != kSoft && m != kAsleep) return;
         any = true;
         const double cut = hi.R + hot_[j].R + reach;
-        const double d2 = (xi - hot_[j].x - shift).squaredNorm();
+        const Vec<D> r = xi - hot_[j].x - shift;
+        const double d2 = r.squaredNorm();
         if (d2 < cut * cut) {
           in = true;
         } else {
           gmin = std::min(gmin, std::sqrt(d2) - cut);
+          if (exact) smin = std::min(smin, hybrid::meet_time<D>(r, Vec<D>(ui - vh_[j]), hi.R + hot_[j].R + reach_max));
         }
       };
       if (direct) {
@@ -2107,9 +2131,12 @@ class HybridEngine final : public edm::EdmCore<D, CalendarQueue, HybridEngine<D>
         // bound): i's speed (plus what gravity adds over the longest skip) and twice the fastest
         // soft particle's. At most kMaxSkip substeps; a collision of i or a soft particle moving
         // next to it brings the check forward (predict, mark_interface).
-        const double span = kMaxSkip * h_;
+        // In the soft set's free flight, the later of that bound and the time the straight courses
+        // bring i within the largest capture distance of a soft grain (or the free flight's end).
         const double vb = vi + g_.norm() * span + 2.0 * vsoft_max_;
-        iface_next_[i] = vb > 0.0 ? t + std::min(span, gmin / vb) : t + span;
+        double skip = vb > 0.0 ? gmin / vb : span;
+        if (exact) skip = std::max(skip, std::min(smin, free_until_ - t));
+        iface_next_[i] = t + std::min(span, skip);
         due = std::min(due, iface_next_[i]);
         iface_[keep++] = i;
       } else {
@@ -2595,6 +2622,7 @@ class HybridEngine final : public edm::EdmCore<D, CalendarQueue, HybridEngine<D>
 
   void freeze(int i) {
     set_mode(i, kAsleep);
+    free_until_ = -kNever;  // (a sleeper stops: no longer on its free course)
     slot_[i] = -1;
     quiet_checks_[i] = 0;
     hot_[i].v.setZero();
@@ -2767,6 +2795,7 @@ class HybridEngine final : public edm::EdmCore<D, CalendarQueue, HybridEngine<D>
     a(leaving_);
     a(vsoft_max_);
     a(iface_due_);  // the coasts' ends depend on it: a resumed run coasts as the first one did
+    a(free_until_);
     a.tag("hybrid.contacts");
     a(springs_);
     a(pairs_);
@@ -2844,6 +2873,8 @@ class HybridEngine final : public edm::EdmCore<D, CalendarQueue, HybridEngine<D>
   std::uint32_t region_stamp_ = 0;
   std::vector<double> region_retry_;        // cost_switch: no region search for a grain before this time
   static constexpr double kMaxSkip = 64.0;
+  // The last grid point up to which no soft grain touches anything (coast_plan): each flies freely.
+  double free_until_ = -kNever;
   bool uniform_ = false;              // one material and one radius: ctab_ = {pair, wall 0, wall 1, ...}
   std::vector<SoftContact> ctab_;
   soft::SpringMemory<D> springs_;  // contacts remembered across a list build

@@ -1902,24 +1902,19 @@ class HybridEngine final : public edm::EdmCore<D, CalendarQueue, HybridEngine<D>
     // in a soft bed the first grain in contact ends the plan.
     const double gn = g_.norm();
     double s = static_cast<double>(kMaxCoast) * h_;  // the coast's longest span
-    double free = kNever;  // the soft set's free flight (free_until_): the list's half skin, the pairs' meets
     bool releasable = false;
-    // |v| s + |g| s (s + h) / 2 <= reach
-    const auto within = [&](int i, double reach) {
-      const double a = 0.5 * gn, b = vh_[i].norm() + 0.5 * gn * h_;
-      return a > 0.0 ? 2.0 * reach / (b + std::sqrt(b * b + 4.0 * a * reach)) : b > 0.0 ? reach / b : kNever;
-    };
     for (const int i : soft_) {
       if (touching_[i] || f_[i] != Vec<D>::Zero()) return 1;
       s = std::min(s, last_contact_[i] + hyst_ - t);
       const Vec<D>& x = hot_[i].x;
-      const double list_reach = 0.5 * lskin_ - (x - x0_[i]).norm();
-      if (!(list_reach > 0.0)) return 1;
-      double reach = list_reach;
+      double reach = 0.5 * lskin_ - (x - x0_[i]).norm();
       for (int k = 0; k < D; ++k) reach = std::min({reach, x[k] - cblo_[i][k], cbhi_[i][k] - x[k]});
-      // (A grain at its cell box's face forbids the coast, not the free flight: the loop goes on.)
-      s = reach > 0.0 ? std::min(s, within(i, reach)) : 0.0;
-      free = std::min(free, within(i, list_reach));
+      if (!(reach > 0.0)) return 1;
+      // |v| s + |g| s (s + h) / 2 <= reach
+      const double a = 0.5 * gn, b = vh_[i].norm() + 0.5 * gn * h_;
+      const double smax = a > 0.0 ? 2.0 * reach / (b + std::sqrt(b * b + 4.0 * a * reach)) : b > 0.0 ? reach / b : kNever;
+      s = std::min(s, smax);
+      if (!(s >= 2.0 * h_)) return 1;
       const std::uint8_t why = joined_by_[i] & static_cast<std::uint8_t>(~kEarly);
       releasable = releasable || (joined_by_[i] & kEarly) || (why != kByStability && why != kByCluster);
     }
@@ -1935,26 +1930,28 @@ class HybridEngine final : public edm::EdmCore<D, CalendarQueue, HybridEngine<D>
       const std::uint64_t since = since_sleep_check_ + 1 >= sleep_every_ ? 0 : since_sleep_check_ + 1;
       s = std::min(s, static_cast<double>(sleep_every_ - since) * h_);
     }
-    s = std::min(s, iface_due_ - t);
     for (int id = this->N_; id < this->N_ + static_cast<int>(this->system_.size()); ++id)
       if (id != substep_id_ && queue_->contains(id)) s = std::min(s, queue_->time_of(id) - t);
+    if (!(s >= 2.0 * h_)) return 1;
     bool fixed = false;
     pairs_.for_each([&](const PairEntry& e) {
-      if (fixed || !(free >= 2.0 * h_)) return;
+      if (fixed || !(s >= 2.0 * h_)) return;
       if (mode_[e.i] == kFixed || mode_[e.j] == kFixed) {
         fixed = true;
         return;
       }
       Vec<D> r = hot_[e.i].x - hot_[e.j].x;
       min_image(r);
-      free = std::min(free, hybrid::meet_time<D>(r, Vec<D>(vh_[e.i] - vh_[e.j]), hot_[e.i].R + hot_[e.j].R));
+      s = std::min(s, hybrid::meet_time<D>(r, Vec<D>(vh_[e.i] - vh_[e.j]), hot_[e.i].R + hot_[e.j].R));
     });
-    if (fixed) return 1;
-    // No soft grain touches anything before t + free (free_until_; capture's next checks). Its
-    // last grid point strictly before: at a touch the forces of its substep are no longer zero.
-    if (free >= 2.0 * h_) free_until_ = t + (std::ceil(free / h_) - 1.0) * h_;
-    s = std::min(s, free);
-    if (!(s >= 2.0 * h_)) return 1;
+    if (fixed || !(s >= 2.0 * h_)) return 1;
+    // No soft grain touches anything before t + s: s is at most the soft pairs' meets and the
+    // reach to half the list skin (the other bounds only shorten it). Its last grid point strictly
+    // before is the free flight's end for the capture checks (free_until_), whose own next check
+    // (iface_due_) ends the coast; the plan is computed past it only where that check alone would
+    // have cut the coast.
+    free_until_ = t + (std::ceil(s / h_) - 1.0) * h_;
+    s = std::min(s, iface_due_ - t);
     // The last grid point strictly before s.
     std::int64_t k = static_cast<std::int64_t>(std::floor(s / h_));
     if (static_cast<double>(k) * h_ >= s) --k;

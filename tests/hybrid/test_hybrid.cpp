@@ -313,7 +313,7 @@ TEST(HybridCapture, InTheSoftSetsFreeFlightAHardGrainIsCheckedWhenItsStraightCou
     EXPECT_LT(dv, 1e-9);
     // The substeps: coasts of at most 64 grid steps while D is an interface grain (t_touch /
     // (64 h) = 223 of them), the contacts' (about 50 each) and a few at each renewal of the soft
-    // list (every 0.05 d that C flies): about 750 here. Checked by the bound alone, D's approach
+    // list (every 0.05 d that C flies): 753 and 880 (with gravity) when this was measured. Checked by the bound alone, D's approach
     // adds about 1 000: below 64 h times the bound (vb = 3: 0.027 d) each check finds the gap
     // 0.01 / 3 of itself smaller, down to the capture distance 2 h vb = 8e-4 d, ln(32) / (0.01 / 3)
     // checks (2 629 and 1 867 substeps in all, without and with gravity, when this was measured).

@@ -2098,8 +2098,7 @@ class HybridEngine final : public edm::EdmCore<D, CalendarQueue, HybridEngine<D>
       // gravity may add over the longest skip (i's, and twice the fastest soft grain's).
       const bool exact = t < free_until_;
       const double span = kMaxSkip * h_;
-      const double reach_max =
-          exact ? std::clamp(2.0 * h_ * (vi + g_.norm() * (3.0 * span + h_) + 2.0 * vsoft_max_), skin_, cskin_) : 0.0;
+      const double reach_max = exact ? capture_gap(vi + 3.0 * g_.norm() * span) : 0.0;
       const Vec<D> ui = vvi - hdt_ * g_;
       const auto near = [&](int j, const Vec<D>& shift) {
         const std::uint8_t m = mode_[j];
